@@ -1,0 +1,38 @@
+"""Tool paths as programmed: tool tip points and orientations in the workpiece frame.
+
+Each reader (one module per file format) returns a :class:`ToolPath`; trajectory generation
+turns it into a time-stamped :class:`~precontour.trajectory.Trajectory`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ToolPath:
+    """Programmed tool path.
+
+    Attributes
+    ----------
+    P : ndarray, shape (M, 3)
+        Tool tip points, mm, workpiece frame.
+    O : ndarray, shape (M, 3)
+        Unit tool orientations, workpiece frame.
+    feed : ndarray, shape (M,), optional
+        Programmed feed in mm/s for the move that ends at each point (NaN where none was
+        programmed; the first entry refers to the start point and is ignored).
+    source : str
+        File name or built-in name, for messages.
+    """
+
+    P: np.ndarray
+    O: np.ndarray
+    feed: np.ndarray | None = None
+    source: str = ""
+
+    @property
+    def n_points(self) -> int:
+        return int(np.asarray(self.P).shape[0])
