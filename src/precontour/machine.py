@@ -53,8 +53,8 @@ def load_machine(spec: str | Path) -> Machine:
     """Load a built-in machine by name (``"zhang2013"``) or a machine file by path."""
     spec_str = str(spec)
     if spec_str in BUILTIN_MACHINES:
-        text = resources.files("precontour.data").joinpath(f"{spec_str}.toml").read_text()
-        return parse_machine(text, source=f"<built-in machine {spec_str}>")
+        return parse_machine(builtin_machine_text(spec_str),
+                             source=f"<built-in machine {spec_str}>")
     path = Path(spec_str)
     if not path.exists():
         raise MachineFileError(
@@ -65,6 +65,14 @@ def load_machine(spec: str | Path) -> Machine:
     except (OSError, UnicodeDecodeError) as exc:
         raise MachineFileError(f"cannot read machine file: {exc}", source=spec_str) from None
     return parse_machine(text, source=spec_str)
+
+
+def builtin_machine_text(name: str = "zhang2013") -> str:
+    """TOML text of a built-in machine: a template for writing your own machine file."""
+    if name not in BUILTIN_MACHINES:
+        raise MachineFileError(f"unknown built-in machine {name!r}; choose one of "
+                               f"{', '.join(BUILTIN_MACHINES)}")
+    return resources.files("precontour.data").joinpath(f"{name}.toml").read_text()
 
 
 def parse_machine(text: str, source: str = "<string>") -> Machine:

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.interpolate import PPoly
 
 from .drives import LinearErrorModel
+from .splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_axes
 
 #: Poles closer than this (relative to their magnitude) are treated as one repeated pole.
 POLE_CLUSTER_RTOL = 1e-4
@@ -258,3 +259,39 @@ def _series_divide(a: np.ndarray, b: np.ndarray, count: int) -> np.ndarray:
     for q in range(count):
         out[q] = (a[q] - np.dot(out[:q], b[q:0:-1])) / b[0]
     return out
+
+
+@dataclass(frozen=True)
+class AxisPrediction:
+    """Predicted tracking errors of the five axes of a trajectory.
+
+    ``prediction(t)`` returns e(t) of shape ``t.shape + (5,)`` (command minus actual; mm, rad).
+    """
+
+    fits: AxisFits
+    errors: tuple[TrackingError, ...]
+
+    def __call__(self, t) -> np.ndarray:
+        return np.stack([err(t) for err in self.errors], axis=-1)
+
+
+def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
+                     tol_linear: float | None = None, tol_rotary: float | None = None
+                     ) -> AxisPrediction:
+    """Fit each axis command (spec section 3) and predict its tracking error (section 4).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times, s.
+    q : ndarray, shape (N, 5)
+        Axis commands X, Y, Z (mm), A, C (rad).
+    models : tuple of 5 LinearErrorModel
+        Closed-loop error models, e.g. ``machine.controller(name).error_models(machine.drives)``.
+    tol_linear, tol_rotary : float, optional
+        Fit tolerances (defaults 1 um, 1 urad).
+    """
+    fits = fit_axes(t, q, tol_linear=DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear,
+                    tol_rotary=DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary)
+    errors = tuple(tracking_error(fit.spline, model) for fit, model in zip(fits, models))
+    return AxisPrediction(fits=fits, errors=errors)

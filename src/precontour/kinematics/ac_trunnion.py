@@ -85,7 +85,7 @@ class ACTrunnion:
             C = np.where(defined, C, c_near)
         # C differs from atan2(Oi, Oj) by a multiple of pi; an odd multiple means A < 0.
         flipped = defined & (np.cos(C - c_raw) < 0.0)
-        A = np.arccos(np.clip(Ok, -1.0, 1.0))
+        A = np.arctan2(sin_a_abs, Ok)  # = arccos(Ok), but accurate near the pole
         A = np.where(flipped, -A, A)
 
         Px, Py, Pz = np.moveaxis(P, -1, 0)
