@@ -36,6 +36,11 @@ MODES: tuple[str, ...] = ("discrete", "continuous")
 #: Default number of integration sub-steps per servo period, per mode (see :func:`simulate`).
 DEFAULT_SUBSTEPS: dict[str, int] = {"discrete": 4, "continuous": 4}
 
+#: Commanded motor speeds below this (rad/s) count as zero in the friction feed-forward, so
+#: that round-off in a resting command (or in its interpolant's derivative, ~1e-11) does not
+#: switch the full static friction torque on and off.
+FF_SPEED_DEADBAND = 1e-8
+
 _N_AXES = len(AXES)
 
 
@@ -346,7 +351,8 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
         Add the feed-forward torque Tff = Tf(w_cmd) of the nominal friction model at the
         commanded motor speed w_cmd = (command velocity) / rg (paper Fig. 10). In discrete mode
         the command velocity over [t_k, t_k+1) is (q[k+1] - q[k]) / Ts, held like u; in
-        continuous mode it is the interpolant's derivative.
+        continuous mode it is the interpolant's derivative. Commanded speeds below
+        :data:`FF_SPEED_DEADBAND` count as zero.
     inertia_scale, damping_scale : float
         Factors on the true plant's J and B (a mis-identified machine); the controller and the
         feed-forward stay nominal.
@@ -482,6 +488,10 @@ def _check_resolution(resolution, mode: str) -> np.ndarray | None:
 # Integrators
 # --------------------------------------------------------------------------------------------
 
+def _deadband(w_cmd: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(w_cmd) < FF_SPEED_DEADBAND, 0.0, w_cmd)
+
+
 def _run_discrete(q, ts, plant: _Plant, law: DiscreteLaw, friction: StackedFriction | None,
                   ff: StackedFriction | None, resolution, substeps):
     """Discrete control law + zero-order hold + exponential integration of the plant.
@@ -502,7 +512,7 @@ def _run_discrete(q, ts, plant: _Plant, law: DiscreteLaw, friction: StackedFrict
     if ff is not None:
         # Mean commanded speed over the hold interval [t_k, t_k+1); the last one is repeated.
         v_cmd = np.diff(q, axis=0, append=q[-1:] + (q[-1:] - q[-2:-1]))
-        tff = ff.many(v_cmd / ts / plant.rg)
+        tff = ff.many(_deadband(v_cmd / ts / plant.rg))
     inv_j = 1.0 / plant.J
     kakt = plant.kakt
     law.reset(q)
@@ -619,7 +629,7 @@ def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFr
     t_stage[:: 2 * m] = t
     X = spline(t_stage)
     Xd = dspline(t_stage)
-    tff = np.zeros_like(X) if ff is None else ff.many(Xd / plant.rg)
+    tff = np.zeros_like(X) if ff is None else ff.many(_deadband(Xd / plant.rg))
     J, B, rg, kakt = plant.J, plant.B, plant.rg, plant.kakt
     zero = np.zeros(_N_AXES)
 
