@@ -36,3 +36,16 @@ class ToolPath:
     @property
     def n_points(self) -> int:
         return int(np.asarray(self.P).shape[0])
+
+
+# Readers import ToolPath from this module, so they are imported after it is defined.
+from ._common import FEED_UNITS, ReadReport  # noqa: E402
+from .apt import read_apt, read_apt_report  # noqa: E402
+from .clcsv import read_clcsv, read_clcsv_report  # noqa: E402
+from .gcode import read_gcode, read_gcode_report  # noqa: E402
+from .readers import (EXTENSIONS, read_toolpath, read_toolpath_report,  # noqa: E402
+                      toolpath_format)
+
+__all__ = ["ToolPath", "ReadReport", "FEED_UNITS", "EXTENSIONS", "read_toolpath",
+           "read_toolpath_report", "toolpath_format", "read_clcsv", "read_clcsv_report",
+           "read_apt", "read_apt_report", "read_gcode", "read_gcode_report"]

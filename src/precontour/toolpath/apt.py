@@ -1,0 +1,236 @@
+"""Reader for APT cutter-location data, as CAM post-processors write it.
+
+Statements are ``NAME/arguments`` (spaces around ``/`` and ``,`` and any case allowed) or a
+bare ``NAME``. Understood: ``GOTO/x,y,z,i,j,k`` and ``GOTO/x,y,z`` (keeps the previous
+orientation, (0, 0, 1) before any), ``FROM/`` (same forms, the start point), ``FEDRAT/``
+(``500``, ``MMPM,500``, ``500,MMPM``, ``IPM,20``; a bare number is in ``feed_units``),
+``RAPID`` (the next move only is a rapid: flagged, feed NaN), ``UNITS/MM`` and
+``UNITS/INCHES`` (coordinates and bare feeds in inches from then on). ``$$`` starts a
+comment; a line ending in ``$`` continues on the next. Moves the reader cannot represent
+(arcs, incremental and direction moves, canned cycles, per-revolution feeds) are errors;
+every other statement (``PARTNO``, ``MULTAX``, ``LOADTL``, ``SPINDL``, ``COOLNT``,
+``END``, ``FINI``, ``PAINT``, ...) is skipped and counted in ``ReadReport.skipped``.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ToolPathError
+from ._common import INCH, ReadReport, feed_factor, finish, read_text
+
+#: Statements that put points on the path.
+MOTION_STATEMENTS = ("GOTO", "FROM")
+
+#: Statements that move the tool in a way a list of points cannot carry: an error.
+UNSUPPORTED_STATEMENTS = {
+    "CIRCLE": "circular moves (CIRCLE) are not supported; output linear GOTO points",
+    "MOVARC": "circular moves (MOVARC) are not supported; output linear GOTO points",
+    "GODLTA": "incremental moves (GODLTA) are not supported; output absolute GOTO points",
+    "GOFWD": "direction moves (GOFWD) are not supported; output GOTO points",
+    "GOLFT": "direction moves (GOLFT) are not supported; output GOTO points",
+    "GORGT": "direction moves (GORGT) are not supported; output GOTO points",
+    "GOBACK": "direction moves (GOBACK) are not supported; output GOTO points",
+    "GOUP": "direction moves (GOUP) are not supported; output GOTO points",
+    "GODOWN": "direction moves (GODOWN) are not supported; output GOTO points",
+    "INDIRV": "direction moves (INDIRV) are not supported; output GOTO points",
+}
+
+_FEED_WORDS = {"MMPM": 1.0 / 60.0, "IPM": INCH / 60.0}
+_PER_REV_WORDS = ("MMPR", "IPR")
+
+__all__ = ["read_apt", "read_apt_report", "MOTION_STATEMENTS", "UNSUPPORTED_STATEMENTS"]
+
+
+def read_apt(path: str | Path, *, feed_units: str = "mm/min"):
+    """Read an APT CL file into a :class:`~precontour.toolpath.ToolPath`.
+
+    Parameters
+    ----------
+    path : str or Path
+        APT CL file (see the module docstring for the statements understood).
+    feed_units : {"mm/min", "mm/s"}
+        Unit of a ``FEDRAT`` that names none (``FEDRAT/ 500``) under ``UNITS/MM``.
+
+    Returns
+    -------
+    ToolPath
+        P (M, 3) mm, unit O (M, 3), feed (M,) mm/s, NaN before the first ``FEDRAT`` and
+        after ``RAPID``.
+
+    Raises
+    ------
+    ToolPathError
+        See :func:`read_apt_report`.
+    """
+    return read_apt_report(path, feed_units=feed_units).toolpath
+
+
+def read_apt_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadReport:
+    """Like :func:`read_apt`, returning the :class:`ReadReport`: the line of each point,
+    rapid flags, duplicates dropped and the count of each skipped statement.
+
+    Raises
+    ------
+    ToolPathError
+        One line naming the file, line and field: an unparseable number, a ``GOTO`` with
+        other than 3 or 6 values, a bad ``FEDRAT`` or ``UNITS``, an unsupported motion
+        statement, a continuation at the end of the file, no ``GOTO`` at all, and the checks
+        common to all readers (non-finite values, zero or non-unit orientation, fewer than
+        two distinct points, orientation turning more than 90 degrees in one move).
+    """
+    source = str(path)
+    bare_feed = feed_factor(feed_units)
+    text = read_text(path)
+
+    args: list[str] = []          # argument text of each motion statement
+    arg_lines: list[int] = []
+    feeds: list[float] = []       # feed in mm/s of each motion (NaN: none / rapid)
+    scales: list[float] = []      # length unit of each motion's coordinates, in mm
+    skipped: Counter[str] = Counter()
+    feed = np.nan
+    scale = 1.0
+    rapid_next = False
+    rapid: list[bool] = []
+    pending = ""
+    pending_line = 0
+
+    for number, raw in enumerate(text.splitlines(), start=1):
+        cut = raw.find("$$")
+        if cut >= 0:
+            raw = raw[:cut]
+        stmt = raw.strip()
+        if pending:
+            stmt = pending + stmt
+            line = pending_line
+        else:
+            line = number
+        if stmt.endswith("$"):
+            if not pending:
+                pending_line = number
+            pending = stmt[:-1]
+            continue
+        pending = ""
+        if not stmt:
+            continue
+        slash = stmt.find("/")
+        if slash < 0:
+            name, rest = stmt.upper(), ""
+        else:
+            name, rest = stmt[:slash].strip().upper(), stmt[slash + 1:]
+
+        if name in MOTION_STATEMENTS:
+            args.append(rest)
+            arg_lines.append(line)
+            feeds.append(np.nan if rapid_next else feed)
+            scales.append(scale)
+            rapid.append(rapid_next)
+            rapid_next = False
+        elif name == "FEDRAT":
+            feed = _fedrat(rest, bare_feed * scale, source, line)
+        elif name == "RAPID":
+            rapid_next = True
+        elif name == "UNITS":
+            scale = _units(rest, source, line)
+        elif name in UNSUPPORTED_STATEMENTS:
+            raise ToolPathError(UNSUPPORTED_STATEMENTS[name], source=source, row=line,
+                                field=name)
+        elif name == "CYCLE" and rest.strip().upper() != "OFF":
+            raise ToolPathError("canned cycles (CYCLE) are not supported; their GOTO points "
+                                "are hole positions, not a contour", source=source, row=line,
+                                field="CYCLE")
+        else:
+            skipped[name.split()[0] if name else "?"] += 1
+    if pending:
+        raise ToolPathError("continuation '$' at the end of the file", source=source,
+                            row=pending_line)
+
+    P, O = _motion_values(args, arg_lines, source)
+    P *= np.asarray(scales)[:, None]
+    return finish(P, O, np.asarray(feeds), lines=arg_lines, source=source, format="apt",
+                  empty="no motion (no GOTO statement)", rapid=rapid, skipped=skipped)
+
+
+def _motion_values(args: list[str], lines: list[int], source: str):
+    """Parse the GOTO arguments (3 or 6 numbers each) into P and O, orientation carried
+    forward where only a point is given."""
+    n = len(args)
+    fields = [a.split(",") for a in args]
+    counts = np.fromiter((len(f) for f in fields), dtype=np.int64, count=n)
+    wrong = (counts != 3) & (counts != 6)
+    if wrong.any():
+        r = int(np.flatnonzero(wrong)[0])
+        raise ToolPathError(f"GOTO needs 3 (x,y,z) or 6 (x,y,z,i,j,k) values, got "
+                            f"{counts[r]}: {args[r].strip()!r}", source=source, row=lines[r],
+                            field="GOTO")
+    flat = [v for f in fields for v in f]
+    try:
+        values = np.array(flat, dtype=float)
+    except ValueError:
+        _raise_bad_number(fields, lines, source)
+        raise
+    if n == 0:
+        return np.empty((0, 3)), np.empty((0, 3))
+    ends = np.cumsum(counts)
+    starts = ends - counts
+    P = values[starts[:, None] + np.arange(3)]
+    has_o = counts == 6
+    O = np.full((n, 3), np.nan)
+    O[has_o] = values[starts[has_o, None] + np.arange(3, 6)]
+    # GOTO/x,y,z keeps the last orientation given (forward fill), (0, 0, 1) before any
+    last = np.maximum.accumulate(np.where(has_o, np.arange(n), -1))
+    O = np.where((last >= 0)[:, None], O[np.maximum(last, 0)], [0.0, 0.0, 1.0])
+    return P, O
+
+
+def _raise_bad_number(fields: list[list[str]], lines: list[int], source: str):
+    names = ("x", "y", "z", "i", "j", "k")
+    for f, line in zip(fields, lines):
+        for name, value in zip(names, f):
+            try:
+                float(value)
+            except ValueError:
+                raise ToolPathError(f"cannot parse number {value.strip()!r}", source=source,
+                                    row=line, field=name) from None
+
+
+def _number(token: str) -> float | None:
+    try:
+        return float(token)
+    except ValueError:
+        return None
+
+
+def _fedrat(rest: str, bare: float, source: str, line: int) -> float:
+    """Feed in mm/s of a FEDRAT statement; ``bare`` converts a number without unit."""
+    tokens = [t.strip() for t in rest.split(",") if t.strip()]
+    numbers = [v for v in map(_number, tokens) if v is not None]
+    words = [t.upper() for t in tokens if _number(t) is None]
+    if len(numbers) != 1 or len(words) > 1:
+        raise ToolPathError(f"cannot read FEDRAT/{rest.strip()}: expected one number and at "
+                            "most one unit (MMPM or IPM)", source=source, row=line,
+                            field="FEDRAT")
+    if words and words[0] in _PER_REV_WORDS:
+        raise ToolPathError(f"feed per revolution ({words[0]}) is not supported; use MMPM or "
+                            "IPM", source=source, row=line, field="FEDRAT")
+    if words and words[0] not in _FEED_WORDS:
+        raise ToolPathError(f"unknown feed unit {words[0]!r}; expected MMPM or IPM",
+                            source=source, row=line, field="FEDRAT")
+    value = numbers[0]
+    if not (np.isfinite(value) and value > 0):
+        raise ToolPathError(f"feed must be positive and finite, got {value:g}",
+                            source=source, row=line, field="FEDRAT")
+    return value * (_FEED_WORDS[words[0]] if words else bare)
+
+
+def _units(rest: str, source: str, line: int) -> float:
+    unit = rest.strip().upper()
+    if unit in ("MM", "MILLIMETERS", "MILLIMETRES"):
+        return 1.0
+    if unit in ("INCHES", "INCH", "IN"):
+        return INCH
+    raise ToolPathError(f"unknown UNITS/{rest.strip()}; expected MM or INCHES",
+                        source=source, row=line, field="UNITS")
