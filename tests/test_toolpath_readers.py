@@ -334,8 +334,15 @@ def test_gcode_dwell_and_comments(machine, tmp_path):
     ("G0 X0\nG1 X#1 F100\n", r"row 2, field 'X': cannot parse number 'X#1'"),
     ("G0 X0\n#1=5\n", r"row 2: cannot parse '#1=5'"),
     ("X0 Y0 Z10\n", r"row 1, field 'G': axis words before any motion code"),
-    ("G0 G1 X0\n", r"row 1, field 'G': two motion codes \(G0, G1\)"),
-    ("G0 X0 X1\n", r"row 1, field 'X': axis word X appears twice"),
+    ("G0 G1 X0\n", r"row 1, field 'G': two codes of one modal group \(G0, G1\) in one block"),
+    ("G0 X0\nG91 G90 X1\n", r"row 2, field 'G': two codes of one modal group \(G91, G90\)"),
+    ("G0 X0\nG20 G21 X1\n", r"row 2, field 'G': two codes of one modal group \(G20, G21\)"),
+    ("G0 X0 X1\n", r"row 1, field 'X': word X appears twice in the block"),
+    ("G0 X0\nG1 X1 F100 F200\n", r"row 2, field 'F': word F appears twice in the block"),
+    ("G0 X0\nG1 X1 F100\nG1 Q5 X2\nG2 X3 R1\n", r"row 3, field 'Q': unsupported word 'Q5'"),
+    ("G0 X0\nG1 X1 F100\nG3 X0 Y1 R1\nG1 Q5 X2\n", r"row 3, field 'G': circular .*\(G3\)"),
+    ("G0 X0\nG1 X1 F100 \u00e9\n", r"row 2: cannot parse '\u00e9'"),
+    ("G0 X0\nG4 G1 X1 P1\n", r"row 2, field 'G': dwell \(G4\) and a motion code"),
     ("G0 X0\nG1 X1 (OPEN (NESTED) COMMENT)\n", r"row 2: unbalanced or nested"),
     ("G0 X0\nG1 X1 P2\n", r"row 2, field 'P': unsupported word 'P2'"),
     ("G0 X0\nG1 X1 F0\n", r"row 2, field 'F': feed must be positive, got F0"),
@@ -351,6 +358,51 @@ def test_gcode_errors(machine, tmp_path, text, match):
     with pytest.raises(ToolPathError, match=match) as info:
         read_gcode(path, machine)
     assert str(info.value).startswith(str(path))
+
+
+def _interpret(blocks):
+    """Sequential reference interpreter for the random programs below."""
+    q = np.zeros(5)
+    inc, scale, out = False, 1.0, []
+    for codes, words in blocks:
+        if "G91" in codes:
+            inc = True
+        if "G90" in codes:
+            inc = False
+        if "G20" in codes:
+            scale = INCH
+        if "G21" in codes:
+            scale = 1.0
+        for j, name in enumerate("XYZAC"):
+            if name in words:
+                value = words[name] * (scale if j < 3 else 1.0)
+                q[j] = q[j] + value if inc else value
+        out.append(q.copy())
+    q = np.array(out)
+    q[:, 3:] = np.radians(q[:, 3:])
+    return q
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_gcode_modal_state_matches_sequential_interpreter(machine, tmp_path, seed):
+    rng = np.random.default_rng(seed)
+    blocks, text = [], ["G0 X0 Y0 Z0 A0 C0"]
+    blocks.append(((), {"X": 0.0, "Y": 0.0, "Z": 0.0, "A": 0.0, "C": 0.0}))
+    for k in range(300):
+        codes = tuple(rng.choice(["G90", "G91", "G20", "G21"],
+                                 size=rng.integers(0, 3), replace=False))
+        if {"G90", "G91"} <= set(codes) or {"G20", "G21"} <= set(codes):
+            codes = codes[:1]
+        names = [a for a in "XYZAC" if rng.random() < 0.5] or ["X"]
+        words = {a: round(float(rng.uniform(-2, 2)), 4) for a in names}
+        blocks.append((codes, words))
+        text.append(f"N{k} " + " ".join(codes) + (" G1" if k == 0 else "") + " "
+                    + " ".join(f"{a}{v:.4f}" for a, v in words.items()) + " F500")
+    expected = _interpret(blocks)
+    # keep the orientation turn per block small: the reader rejects > 90 deg
+    report = read_gcode_report(write(tmp_path, "r.nc", "\n".join(text)), machine)
+    keep = np.r_[True, np.any(np.diff(expected, axis=0) != 0, axis=1)]
+    np.testing.assert_allclose(report.axes, expected[keep], rtol=0, atol=1e-9)
 
 
 def test_gcode_needs_a_machine_with_kinematics(tmp_path):

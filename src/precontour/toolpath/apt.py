@@ -14,10 +14,14 @@ every other statement (``PARTNO``, ``MULTAX``, ``LOADTL``, ``SPINDL``, ``COOLNT`
 
 from __future__ import annotations
 
+import io
 from collections import Counter
+from itertools import repeat
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
 
 from ..errors import ToolPathError
 from ._common import INCH, ReadReport, feed_factor, finish, read_text
@@ -88,17 +92,21 @@ def read_apt_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRepo
 
     args: list[str] = []          # argument text of each motion statement
     arg_lines: list[int] = []
-    feeds: list[float] = []       # feed in mm/s of each motion (NaN: none / rapid)
-    scales: list[float] = []      # length unit of each motion's coordinates, in mm
+    arg_state: list[int] = []     # index into `states` of each motion
+    states = [(np.nan, 1.0)]      # (feed mm/s, mm per length unit) after each change
+    rapid_at: list[int] = []      # motions that follow a RAPID
     skipped: Counter[str] = Counter()
-    feed = np.nan
-    scale = 1.0
     rapid_next = False
-    rapid: list[bool] = []
     pending = ""
     pending_line = 0
 
     for number, raw in enumerate(text.splitlines(), start=1):
+        # fast path: the plain 'GOTO/...' lines that make up nearly all of a CL file
+        if raw[:5] == "GOTO/" and "$" not in raw and not (pending or rapid_next):
+            args.append(raw[5:])
+            arg_lines.append(number)
+            arg_state.append(len(states) - 1)
+            continue
         cut = raw.find("$$")
         if cut >= 0:
             raw = raw[:cut]
@@ -123,18 +131,19 @@ def read_apt_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRepo
             name, rest = stmt[:slash].strip().upper(), stmt[slash + 1:]
 
         if name in MOTION_STATEMENTS:
+            if rapid_next:
+                rapid_at.append(len(args))
+                rapid_next = False
             args.append(rest)
             arg_lines.append(line)
-            feeds.append(np.nan if rapid_next else feed)
-            scales.append(scale)
-            rapid.append(rapid_next)
-            rapid_next = False
+            arg_state.append(len(states) - 1)
         elif name == "FEDRAT":
-            feed = _fedrat(rest, bare_feed * scale, source, line)
+            scale = states[-1][1]
+            states.append((_fedrat(rest, bare_feed * scale, source, line), scale))
         elif name == "RAPID":
             rapid_next = True
         elif name == "UNITS":
-            scale = _units(rest, source, line)
+            states.append((states[-1][0], _units(rest, source, line)))
         elif name in UNSUPPORTED_STATEMENTS:
             raise ToolPathError(UNSUPPORTED_STATEMENTS[name], source=source, row=line,
                                 field=name)
@@ -149,8 +158,13 @@ def read_apt_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRepo
                             row=pending_line)
 
     P, O = _motion_values(args, arg_lines, source)
-    P *= np.asarray(scales)[:, None]
-    return finish(P, O, np.asarray(feeds), lines=arg_lines, source=source, format="apt",
+    state = np.asarray(states)[np.asarray(arg_state, dtype=np.int64)].reshape(-1, 2)
+    feed, scale = state[:, 0].copy(), state[:, 1]
+    P *= scale[:, None]
+    rapid = np.zeros(len(args), dtype=bool)
+    rapid[rapid_at] = True
+    feed[rapid] = np.nan
+    return finish(P, O, feed, lines=arg_lines, source=source, format="apt",
                   empty="no motion (no GOTO statement)", rapid=rapid, skipped=skipped)
 
 
@@ -158,28 +172,41 @@ def _motion_values(args: list[str], lines: list[int], source: str):
     """Parse the GOTO arguments (3 or 6 numbers each) into P and O, orientation carried
     forward where only a point is given."""
     n = len(args)
-    fields = [a.split(",") for a in args]
-    counts = np.fromiter((len(f) for f in fields), dtype=np.int64, count=n)
+    if n == 0:
+        return np.empty((0, 3)), np.empty((0, 3))
+    counts = np.fromiter(map(str.count, args, repeat(",", n)), dtype=np.int64, count=n) + 1
     wrong = (counts != 3) & (counts != 6)
     if wrong.any():
         r = int(np.flatnonzero(wrong)[0])
         raise ToolPathError(f"GOTO needs 3 (x,y,z) or 6 (x,y,z,i,j,k) values, got "
                             f"{counts[r]}: {args[r].strip()!r}", source=source, row=lines[r],
                             field="GOTO")
-    flat = [v for f in fields for v in f]
-    try:
-        values = np.array(flat, dtype=float)
-    except ValueError:
-        _raise_bad_number(fields, lines, source)
-        raise
-    if n == 0:
-        return np.empty((0, 3)), np.empty((0, 3))
-    ends = np.cumsum(counts)
-    starts = ends - counts
-    P = values[starts[:, None] + np.arange(3)]
+    # pyarrow parses numbers far faster than Python or numpy; rows of 3 values are padded to
+    # 6 fields (null orientation). Anything it cannot read is located (slowly) for the message.
     has_o = counts == 6
-    O = np.full((n, 3), np.nan)
-    O[has_o] = values[starts[has_o, None] + np.arange(3, 6)]
+    rows = args if has_o.all() else [a if o else a + ",,," for a, o in zip(args, has_o)]
+    names = ["x", "y", "z", "i", "j", "k"]
+    try:
+        table = pacsv.read_csv(
+            io.BytesIO("\n".join(rows).encode()),
+            read_options=pacsv.ReadOptions(column_names=names),
+            parse_options=pacsv.ParseOptions(quote_char=False),
+            convert_options=pacsv.ConvertOptions(column_types={c: pa.float64() for c in names},
+                                                 null_values=[""]))
+        values = np.column_stack([table.column(c).to_numpy(zero_copy_only=False)
+                                  for c in names])
+        if values.shape[0] != n:
+            raise ValueError("row count")
+        missing = np.isnan(values) & np.column_stack([
+            table.column(c).is_null().to_numpy(zero_copy_only=False) for c in names])
+        missing[~has_o, 3:] = False
+        if missing.any():
+            raise ValueError("empty field")
+    except (pa.ArrowInvalid, ValueError):
+        _raise_bad_number([a.split(",") for a in args], lines, source)
+        raise ToolPathError("cannot parse the GOTO values", source=source) from None
+    P = values[:, :3]
+    O = values[:, 3:].copy()
     # GOTO/x,y,z keeps the last orientation given (forward fill), (0, 0, 1) before any
     last = np.maximum.accumulate(np.where(has_o, np.arange(n), -1))
     O = np.where((last >= 0)[:, None], O[np.maximum(last, 0)], [0.0, 0.0, 1.0])
