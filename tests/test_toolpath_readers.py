@@ -216,6 +216,8 @@ def test_apt_round_trip(tmp_path):
     ("GOTO/0,0,0\nGOTO/1,2.5.1,0\n", r"row 2, field 'y': cannot parse number '2.5.1'"),
     ("GOTO/0,0,0\nGOTO/1,0,0,0,0,1,\n", r"row 2, field 'GOTO': GOTO needs 3 \(x,y,z\) or 6"),
     ("GOTO/0,0,0\nGOTO/1,0,0,0\n", r"row 2, field 'GOTO': .* got 4"),
+    ("GOTO/0,0,0\nGOTO/1,,0\n", r"row 2, field 'y': cannot parse number ''"),
+    ("GOTO/0,0,0\nGOTO/1,0,0,0,,1\n", r"row 2, field 'j': cannot parse number ''"),
     ("GOTO/0,0,0\nFEDRAT/MMPR,0.1\nGOTO/1,0,0\n", r"row 2, field 'FEDRAT': feed per revolution"),
     ("FEDRAT/FAST\nGOTO/1,0,0\n", r"row 1, field 'FEDRAT': cannot read FEDRAT/FAST"),
     ("FEDRAT/MMPS,5\nGOTO/1,0,0\n", r"row 1, field 'FEDRAT': unknown feed unit 'MMPS'"),
@@ -236,6 +238,13 @@ def test_apt_errors(tmp_path, text, match):
     with pytest.raises(ToolPathError, match=match) as info:
         read_apt(path)
     assert str(info.value).startswith(str(path))
+
+
+def test_apt_text_statement_ending_in_dollar_is_not_a_continuation(tmp_path):
+    text = "PPRINT PRICE IN $\nGOTO/0,0,0\nPARTNO COST $\nGOTO/1,0,0\n"
+    report = read_apt_report(write(tmp_path, "t.apt", text))
+    np.testing.assert_array_equal(report.lines, [2, 4])
+    assert dict(report.skipped) == {"PPRINT": 1, "PARTNO": 1}
 
 
 # --------------------------------------------------------------------------- G-code
@@ -310,6 +319,15 @@ def test_gcode_inch_and_incremental(machine, tmp_path):
                                rtol=1e-15)
 
 
+def test_gcode_crlf_and_lowercase(machine, tmp_path):
+    path = tmp_path / "w.nc"
+    path.write_bytes(b"%\r\n(dos file)\r\ng0 x1 y2 z3\r\n\r\ng1 x4 f120\r\n%\r\n")
+    report = read_gcode_report(path, machine)
+    np.testing.assert_array_equal(report.axes[:, :3], [[1, 2, 3], [4, 2, 3]])
+    np.testing.assert_array_equal(report.lines, [3, 5])
+    np.testing.assert_array_equal(report.toolpath.feed, [np.nan, 2.0])
+
+
 def test_gcode_dwell_and_comments(machine, tmp_path):
     text = ("(SETUP) G0 X0 Y0 Z50 ; start\n"
             "g04 p0.5\n"
@@ -331,6 +349,9 @@ def test_gcode_dwell_and_comments(machine, tmp_path):
     ("G0 X0\nG28 G91 Z0\n", r"row 2, field 'G': unsupported G code G28"),
     ("G0 X0\nG1 B45. F100\n", r"row 2, field 'B': unsupported word 'B45.' \(axes are X Y Z A C\)"),
     ("G0 X0\nG1 X1.2.3 F100\n", r"row 2, field 'X': cannot parse number 'X1.2.3'"),
+    ("G0 X0\nG1 X Y1 F100\n", r"row 2, field 'X': cannot parse number 'X'"),
+    ("G0 X0\r\nG1 Y- F100\r\n", r"row 2, field 'Y': cannot parse number 'Y-'"),
+    ("G0 X0\n5 Y1\n", r"row 2: cannot parse '5Y1'"),
     ("G0 X0\nG1 X#1 F100\n", r"row 2, field 'X': cannot parse number 'X#1'"),
     ("G0 X0\n#1=5\n", r"row 2: cannot parse '#1=5'"),
     ("X0 Y0 Z10\n", r"row 1, field 'G': axis words before any motion code"),

@@ -1,7 +1,11 @@
 """Tool paths as programmed: tool tip points and orientations in the workpiece frame.
 
-Each reader (one module per file format) returns a :class:`ToolPath`; trajectory generation
-turns it into a time-stamped :class:`~precontour.trajectory.Trajectory`.
+Each reader (one module per file format: :mod:`.clcsv`, :mod:`.apt`, :mod:`.gcode`) returns a
+:class:`ToolPath`; :func:`read_toolpath` picks one by file extension (:mod:`.readers`). The
+``*_report`` variants return a :class:`ReadReport` with the source line of each point, rapid
+flags, and what was dropped or skipped. All readers apply the same checks
+(:func:`._common.finish`). Trajectory generation turns a tool path into a time-stamped
+:class:`~precontour.trajectory.Trajectory`.
 """
 
 from __future__ import annotations

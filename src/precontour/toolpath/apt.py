@@ -43,6 +43,9 @@ UNSUPPORTED_STATEMENTS = {
     "INDIRV": "direction moves (INDIRV) are not supported; output GOTO points",
 }
 
+#: Statements whose argument is free text: a '$' at its end is text, not a continuation.
+_TEXT_STATEMENTS = ("PPRINT", "PARTNO", "INSERT", "REMARK")
+
 _FEED_WORDS = {"MMPM": 1.0 / 60.0, "IPM": INCH / 60.0}
 _PER_REV_WORDS = ("MMPR", "IPR")
 
@@ -116,7 +119,7 @@ def read_apt_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRepo
             line = pending_line
         else:
             line = number
-        if stmt.endswith("$"):
+        if stmt.endswith("$") and not stmt[:6].upper().startswith(_TEXT_STATEMENTS):
             if not pending:
                 pending_line = number
             pending = stmt[:-1]

@@ -87,6 +87,8 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
         _raise_bad_number(data, header, wanted, source)
         raise  # _raise_bad_number always raises; keeps type checkers quiet
     lines = _data_lines(data, header_line)
+    if lines.size != table.num_rows:  # quoted line breaks: number rows after the header
+        lines = header_line + 1 + np.arange(table.num_rows)
     if invalid:
         _raise_bad_row(data, header, source)
 

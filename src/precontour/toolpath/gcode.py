@@ -148,11 +148,12 @@ def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True) -
     ok = (np.all(is_letter | newline | _NUMBER_CHAR[chars])
           and np.all(is_letter[starts] | newline[starts]))
     letter = chars[is_letter]
+    value = None
     if ok:
         digits = chars.copy()
         digits[is_letter] = ord("\n")  # one number per line for the CSV parser
         value = _parse_numbers(digits[~newline].tobytes(), letter.size)
-    if not ok or value is None:
+    if value is None:
         _raise_syntax(text, source)
     marks = newline[is_letter | newline]
     n_lines = int(newline.sum()) + 1
@@ -256,6 +257,10 @@ class _Blocks:
     def __init__(self, text, line, letter, value, n_lines, source):
         self.text, self.line, self.letter, self.value = text, line, letter, value
         self.n_lines, self.source = n_lines, source
+        allowed = np.frombuffer(("GFP" + "".join(AXIS_WORDS) + "".join(sorted(IGNORED_WORDS)))
+                                .encode(), dtype=np.uint8)
+        self.unknown = ~np.isin(letter, allowed)
+        self.codes = np.where(letter == ord("G"), np.rint(value * 10.0), np.nan)
 
     def word(self, row: int, letter: str) -> str:
         """The first word with ``letter`` on 0-based line ``row``, as written (cleaned)."""
@@ -290,13 +295,13 @@ class _Blocks:
         k = np.maximum.accumulate(k)
         return np.where(k >= 0, per_line[np.maximum(k, 0)], initial)
 
-    def at_most_one(self, mask: np.ndarray, field: str, what: str = ""):
+    def at_most_one(self, mask: np.ndarray, field: str):
         counts = np.bincount(self.line[mask], minlength=self.n_lines)
         if (counts > 1).any():
             row = int(np.flatnonzero(counts > 1)[0])
             tokens = np.flatnonzero(mask & (self.line == row))
             if field == "G":
-                names = [_CODE_NAMES.get(int(c), "G?") for c in self._codes[tokens]]
+                names = [_CODE_NAMES.get(int(c), "G?") for c in self.codes[tokens]]
                 self.fail(row, f"two codes of one modal group ({', '.join(names)}) in one "
                                "block", "G")
             self.fail(row, f"word {field} appears twice in the block", field)
@@ -304,9 +309,6 @@ class _Blocks:
     def check_words(self, skipped: Counter):
         """Reject unknown words (after any G-code error on an earlier or the same line) and
         repeated value words; count the ignored ones."""
-        allowed = np.frombuffer(("G F P" + "".join(AXIS_WORDS) + "".join(IGNORED_WORDS))
-                                .replace(" ", "").encode(), dtype=np.uint8)
-        self._unknown = ~np.isin(self.letter, allowed)
         for ch in (*AXIS_WORDS, "F", "P"):
             self.at_most_one(self.letter == ord(ch), ch)
         for ch in IGNORED_WORDS:
@@ -323,8 +325,7 @@ class _Blocks:
         """G code numbers in tenths (G43.4 -> 434; NaN for other words), after rejecting
         unsupported codes and unknown words, whichever comes first in the file."""
         is_g = self.letter == ord("G")
-        codes = np.where(is_g, np.rint(self.value * 10.0), np.nan)
-        self._codes = codes
+        codes = self.codes
         ignored = {int(_code10(g)) for g in IGNORED_G}
         known = {0, 10, 40, 200, 210, 900, 910, 940} | ignored
         bad_g = is_g & ~np.isin(codes, sorted(known))
@@ -336,8 +337,8 @@ class _Blocks:
             message = _UNSUPPORTED_G.get(name, f"unsupported G code {name}")
             g_rows[self.line[t]] = True
             candidates.append((g_rows, message.replace("{", "{{").replace("}", "}}"), "G"))
-        if self._unknown.any():
-            t = int(np.flatnonzero(self._unknown)[0])
+        if self.unknown.any():
+            t = int(np.flatnonzero(self.unknown)[0])
             rows = np.full(self.n_lines, False)
             rows[self.line[t]] = True
             ch = chr(self.letter[t])
