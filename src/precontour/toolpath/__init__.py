@@ -1,7 +1,11 @@
 """Tool paths as programmed: tool tip points and orientations in the workpiece frame.
 
-Each reader (one module per file format) returns a :class:`ToolPath`; trajectory generation
-turns it into a time-stamped :class:`~precontour.trajectory.Trajectory`.
+Each reader (one module per file format: :mod:`.clcsv`, :mod:`.apt`, :mod:`.gcode`) returns a
+:class:`ToolPath`; :func:`read_toolpath` picks one by file extension (:mod:`.readers`). The
+``*_report`` variants return a :class:`ReadReport` with the source line of each point, rapid
+flags, and what was dropped or skipped. All readers apply the same checks
+(:func:`._common.finish`). Trajectory generation turns a tool path into a time-stamped
+:class:`~precontour.trajectory.Trajectory`.
 """
 
 from __future__ import annotations
@@ -36,3 +40,16 @@ class ToolPath:
     @property
     def n_points(self) -> int:
         return int(np.asarray(self.P).shape[0])
+
+
+# Readers import ToolPath from this module, so they are imported after it is defined.
+from ._common import FEED_UNITS, ReadReport  # noqa: E402
+from .apt import read_apt, read_apt_report  # noqa: E402
+from .clcsv import read_clcsv, read_clcsv_report  # noqa: E402
+from .gcode import read_gcode, read_gcode_report  # noqa: E402
+from .readers import (EXTENSIONS, read_toolpath, read_toolpath_report,  # noqa: E402
+                      toolpath_format)
+
+__all__ = ["ToolPath", "ReadReport", "FEED_UNITS", "EXTENSIONS", "read_toolpath",
+           "read_toolpath_report", "toolpath_format", "read_clcsv", "read_clcsv_report",
+           "read_apt", "read_apt_report", "read_gcode", "read_gcode_report"]

@@ -1,0 +1,91 @@
+"""Pick the tool-path reader for a file by its extension (or an explicit ``format``).
+
+=========  ============================================================  ===================
+format     extensions                                                    reader
+=========  ============================================================  ===================
+clcsv      ``.csv``                                                      :mod:`.clcsv`
+apt        ``.apt .cls .cl .aptsource``                                  :mod:`.apt`
+gcode      ``.nc .ngc .gcode .gc .tap .mpf .cnc .iso`` (needs a machine)  :mod:`.gcode`
+=========  ============================================================  ===================
+
+Extensions are matched without regard to case. ``.txt`` is deliberately not mapped (it is
+used for all three); pass ``format=`` for such files.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import MappingProxyType
+
+from ..errors import InputError, ToolPathError
+from ._common import ReadReport
+from .apt import read_apt_report
+from .clcsv import read_clcsv_report
+from .gcode import read_gcode_report
+
+#: File extensions of each format.
+EXTENSIONS = MappingProxyType({
+    "clcsv": (".csv",),
+    "apt": (".apt", ".cls", ".cl", ".aptsource"),
+    "gcode": (".nc", ".ngc", ".gcode", ".gc", ".tap", ".mpf", ".cnc", ".iso"),
+})
+
+FORMATS = tuple(EXTENSIONS)
+
+__all__ = ["read_toolpath", "read_toolpath_report", "toolpath_format", "EXTENSIONS", "FORMATS"]
+
+
+def toolpath_format(path: str | Path) -> str:
+    """Format name (``"clcsv"``, ``"apt"`` or ``"gcode"``) of a file, from its extension."""
+    suffix = Path(path).suffix.lower()
+    for name, suffixes in EXTENSIONS.items():
+        if suffix in suffixes:
+            return name
+    known = ", ".join(s for suffixes in EXTENSIONS.values() for s in suffixes)
+    raise ToolPathError(f"unknown tool-path extension {suffix or '(none)'!r}; supported: "
+                        f"{known} (or pass format= one of {', '.join(FORMATS)})",
+                        source=str(path))
+
+
+def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
+                  format: str | None = None):
+    """Read a tool path file of any supported format.
+
+    Parameters
+    ----------
+    path : str or Path
+        Tool path file; the format follows from the extension (see the module docstring).
+    machine : Machine or str, optional
+        Needed for G-code (machine axes -> tool tip and orientation); a built-in machine
+        name or machine file path is loaded. Ignored for CL data.
+    feed_units : {"mm/min", "mm/s"}
+        Unit of CL-data feeds that carry none (CSV ``F`` column, bare APT ``FEDRAT``).
+        G-code feeds are always per minute (G94) and ignore it.
+    format : {"clcsv", "apt", "gcode"}, optional
+        Override the extension.
+
+    Returns
+    -------
+    ToolPath
+    """
+    return read_toolpath_report(path, machine=machine, feed_units=feed_units,
+                                format=format).toolpath
+
+
+def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "mm/min",
+                         format: str | None = None) -> ReadReport:
+    """Like :func:`read_toolpath`, returning the :class:`ReadReport` (line of each point,
+    rapid flags, duplicates dropped, skipped statements, G-code axis positions)."""
+    if format is None:
+        format = toolpath_format(path)
+    elif format not in EXTENSIONS:
+        raise InputError(f"unknown tool-path format {format!r}; use one of "
+                         f"{', '.join(FORMATS)}", field="format")
+    if format == "clcsv":
+        return read_clcsv_report(path, feed_units=feed_units)
+    if format == "apt":
+        return read_apt_report(path, feed_units=feed_units)
+    if machine is None:
+        raise ToolPathError("G-code gives machine-axis positions: reading it needs a machine "
+                            "(machine=...)", source=str(path))
+    return read_gcode_report(path, machine)
