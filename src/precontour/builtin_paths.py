@@ -27,17 +27,17 @@ def paper_path(n_points: int = 500) -> ToolPath:
     For u in [0, 1]::
 
         Px = -50 cos(pi u)                                  (-50 .. 50 mm)
-        Py =  30 sin(3 pi u + 0.6 sin(2 pi u))              (-30 .. 30 mm, varying curvature)
+        Py =  30 sin(2.5 pi u + 0.6 sin(2 pi u))            (-30 .. 30 mm, varying curvature)
         Pz =  20 - 20 cos(2 pi u) * (0.7 + 0.3 u)           (about 0 .. 40 mm)
         A  =  0.25 + 1.25 sin(pi u)^2                       (0.25 .. 1.5 rad)
         C  = -1.0 + 2.0 u - 0.3 sin(2 pi u)                 (-1 .. 1 rad, sweeps 2 rad)
 
-    About 100 x 60 x 40 mm and 240 mm long, about 2.6 s at 100 mm/s on zhang2013; the tip
-    stays within 60 mm of the C axis and A never comes near 0.
+    About 100 x 60 x 37 mm and 212 mm long, about 2.6 s at 100 mm/s on zhang2013; the tip
+    stays 18 to 58 mm from the C axis and A never comes near 0.
     """
     u = np.linspace(0.0, 1.0, n_points)
     P = np.stack([-50.0 * np.cos(np.pi * u),
-                  30.0 * np.sin(3 * np.pi * u + 0.6 * np.sin(2 * np.pi * u)),
+                  30.0 * np.sin(2.5 * np.pi * u + 0.6 * np.sin(2 * np.pi * u)),
                   20.0 - 20.0 * np.cos(2 * np.pi * u) * (0.7 + 0.3 * u)], axis=-1)
     A = 0.25 + 1.25 * np.sin(np.pi * u) ** 2
     C = -1.0 + 2.0 * u - 0.3 * np.sin(2 * np.pi * u)

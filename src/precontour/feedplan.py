@@ -16,7 +16,8 @@ in four vectorized stages, the classic CNC way:
 3. Jerk limiting by a moving-average (FIR) filter of the velocity in time, of length
    T = 2 a_tip / j_tip, which bounds the tangential jerk by 2 a/T <= j_tip by construction.
    Because the filter averages velocities over T, the limit curves of stage 1 are first
-   eroded (running minimum in s) over the distance the path covers in T/2 at full feed.
+   eroded: each grid point's limit also applies within the distance its own speed covers in
+   T (a running minimum in s whose reach grows with the local speed limit).
 4. Sampling at the servo period and a check of every limit on every sample with finite
    differences; where an axis limit is still exceeded (the filter and the finite grids are
    only nearly exact for nonlinear kinematics) v_lim is lowered locally and the plan is
@@ -102,7 +103,7 @@ def axis_limits(machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
               acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
               ts: float = 0.001, programmed_feed=None, grid_step: float | None = None,
-              max_iterations: int = 12) -> FeedProfile:
+              max_iterations: int = 12, max_samples: int = 50_000_000) -> FeedProfile:
     """Plan a jerk-limited feed profile along ``path`` within feed and axis limits.
 
     Parameters
@@ -129,6 +130,8 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
         Step of the planning grid in s, mm; default ``min(feed * ts / 2, L / 2000)``.
     max_iterations : int
         Planning passes before giving up.
+    max_samples : int
+        Largest number of samples the plan may have (memory guard).
 
     Returns
     -------
@@ -143,7 +146,9 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     ValueError
         Non-positive limits or sampling period.
     PrecontourError
-        No feasible plan found within ``max_iterations`` passes.
+        No feasible plan found within ``max_iterations`` passes, a plan longer than
+        ``max_samples``, or a rotary axis that jumps (the path crosses a singular direction
+        such as the tool pointing straight down on an A-C trunnion).
     """
     for name, value in (("feed", feed), ("acceleration", acceleration), ("jerk", jerk),
                         ("ts", ts)):
@@ -161,13 +166,14 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     feed_of_s = _feed_on_grid(path, s_grid, programmed_feed, feed)
     geometry = _grid_geometry(path, machine, s_grid, h)
     n_filter = max(1, int(np.ceil(2.0 * acceleration / jerk / ts)))
-    half_window = int(np.ceil(feed * n_filter * ts / 2.0 / h))
+    reach = 0.5 * n_filter * ts  # a limit is felt over the distance its speed covers in T/2
+    _check_continuity(geometry, s_grid)
 
     scale = np.ones(n_grid)
     for iteration in range(1, max_iterations + 1):
-        v_lim, a_lim = _limit_curves(geometry, feed_of_s, lim, scale, half_window)
+        v_lim, a_lim = _limit_curves(geometry, feed_of_s, lim, scale, reach, h)
         v = _acceleration_passes(v_lim, a_lim, h)
-        s = _time_law(v, h, ts, n_filter, L)
+        s = _time_law(v, h, ts, n_filter, L, max_samples)
         P, O = path(s)
         q = machine.kinematics.inverse(P, O)
         ratio = _violation(s, P, q, ts, feed_of_s, s_grid, lim)
@@ -181,7 +187,7 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
         factor = np.ones(n_grid)
         idx = np.clip(np.rint(s[1:-1][bad] / h).astype(int), 0, n_grid - 1)
         np.minimum.at(factor, idx, MARGIN / ratio[bad])
-        factor = minimum_filter1d(factor, 2 * half_window + 1, mode="nearest")
+        factor = _erode(factor, v_lim, reach, h)
         scale *= factor
     raise PrecontourError(f"feed planning did not meet the limits after {max_iterations} "
                           f"passes (worst ratio {worst:.6g}); lower the feed or the limits")
@@ -217,7 +223,38 @@ def _grid_geometry(path, machine, s_grid, h):
     return dP, ddP, np.abs(dq), np.abs(ddq), np.abs(dddq)
 
 
-def _limit_curves(geometry, feed_of_s, lim, scale, half_window):
+def _erode(values, speed, reach, h):
+    """Running minimum of ``values`` in which grid point k reaches the points within
+    ``speed[k] * reach`` of it (rounded up to a power-of-two speed band; one
+    :func:`scipy.ndimage.minimum_filter1d` per band, so the cost is O(N log(range))."""
+    out = np.array(values, dtype=float)
+    level = float(np.max(speed))
+    while level > 0:
+        width = int(np.ceil(level * reach / h))
+        if width < 1:
+            break
+        band = (speed <= level) & (speed > 0.5 * level)
+        if band.any():
+            out = np.minimum(out, minimum_filter1d(np.where(band, values, np.inf),
+                                                   2 * width + 1, mode="nearest"))
+        level *= 0.5
+    return out
+
+
+def _check_continuity(geometry, s_grid):
+    """Refuse paths whose rotary commands jump (e.g. through the A-C trunnion's other pole,
+    tool pointing down): no feed would make them feasible."""
+    dq = geometry[2] * (s_grid[1] - s_grid[0])
+    # More than 1 rad between neighbouring grid points (<= 0.05 mm apart) is a jump.
+    jump = dq[:, 3:] > 1.0
+    if jump.any():
+        k, axis = np.unravel_index(np.flatnonzero(jump.ravel())[0], jump.shape)
+        raise PrecontourError(f"axis {AXES[3 + axis]} jumps by {dq[k, 3 + axis]:.6g} rad near "
+                              f"s = {s_grid[k]:.6g} mm of the path: the orientation passes "
+                              "through a singular direction of the kinematics")
+
+
+def _limit_curves(geometry, feed_of_s, lim, scale, reach, h):
     dP, ddP, dq, ddq, dddq = geometry
     m, c = MARGIN, CURVATURE_SHARE
     with np.errstate(divide="ignore"):
@@ -230,12 +267,12 @@ def _limit_curves(geometry, feed_of_s, lim, scale, half_window):
             np.min(np.cbrt(c * m * lim.j / dddq), axis=1),
         ]
     v_lim = np.minimum.reduce(candidates) * scale
-    v_lim = minimum_filter1d(v_lim, 2 * half_window + 1, mode="nearest")
+    v_lim = _erode(v_lim, v_lim, reach, h)
     with np.errstate(divide="ignore", invalid="ignore"):
         a_tip = m * lim.acceleration - ddP * v_lim**2
         a_axes = np.min((m * lim.a - ddq * v_lim[:, None] ** 2) / dq, axis=1)
     a_lim = np.minimum(a_tip, a_axes) * scale**2
-    a_lim = minimum_filter1d(a_lim, 2 * half_window + 1, mode="nearest")
+    a_lim = _erode(a_lim, v_lim, reach, h)
     # The curvature share keeps a_lim >= (1 - c) m * limit > 0 wherever v_lim is unscaled.
     return v_lim, np.maximum(a_lim, 1e-9 * m * lim.acceleration)
 
@@ -250,13 +287,17 @@ def _acceleration_passes(v_lim, a_lim, h):
     return np.sqrt(np.maximum(np.minimum(fwd, bwd), 0.0))
 
 
-def _time_law(v, h, ts, n_filter, L):
+def _time_law(v, h, ts, n_filter, L, max_samples):
     """Sample s(t) of the acceleration-limited profile v(s) at ts, then filter its velocity
     with a moving average of ``n_filter`` samples (jerk limit); returns s at each sample."""
     # Constant acceleration between grid nodes: v^2 is linear in s, so dt = 2h/(v0 + v1).
     dt = 2.0 * h / (v[1:] + v[:-1])
     t_node = np.concatenate([[0.0], np.cumsum(dt)])
     accel = (v[1:] ** 2 - v[:-1] ** 2) / (2.0 * h)
+    if not t_node[-1] / ts <= max_samples:
+        raise PrecontourError(f"the planned motion would take {t_node[-1]:.6g} s, more than "
+                              f"{max_samples} samples; the path is too slow somewhere "
+                              "(a limit too low, or a near-singular orientation)")
     n_cells = int(np.ceil(t_node[-1] / ts))
     t = np.arange(n_cells + 1) * ts
     k = np.clip(np.searchsorted(t_node, t, side="right") - 1, 0, v.size - 2)
