@@ -37,7 +37,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from .drives import AXES
-from .errors import PrecontourError
+from .errors import PrecontourError, ToolPathError
 
 #: Default maximum tool tip feed, mm/s (the paper's test path).
 DEFAULT_FEED = 100.0
@@ -144,7 +144,8 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     Raises
     ------
     ValueError
-        Non-positive limits or sampling period.
+        Non-positive limits or sampling period; a non-positive programmed feed
+        (:class:`~precontour.errors.ToolPathError` naming the point's row).
     PrecontourError
         No feasible plan found within ``max_iterations`` passes, a plan longer than
         ``max_samples``, or a rotary axis that jumps (the path crosses a singular direction
@@ -202,8 +203,8 @@ def _feed_on_grid(path, s_grid, programmed_feed, feed):
     bad = ~(np.isnan(pf) | (pf > 0))
     if bad[1:].any():
         i = int(np.flatnonzero(bad[1:])[0]) + 1
-        raise ValueError(f"programmed feed must be positive, got {pf[i]!r} at point "
-                         f"{int(path.point_index[i]) + 1}")
+        raise ToolPathError(f"programmed feed must be positive, got {pf[i]:g} mm/s",
+                            row=int(path.point_index[i]) + 1, field="feed")
     pf = np.where(np.isnan(pf), feed, np.minimum(pf, feed))
     # Move i ends at point i, so s in (s_{i-1}, s_i] belongs to pf[i].
     seg = np.clip(np.searchsorted(path.s_points, s_grid, side="left"), 1, pf.size - 1)
