@@ -82,20 +82,22 @@ class TrajectorySummary:
                     and np.all(self.peak_jerk <= self.j_max * tol))
 
     def format(self) -> str:
-        """Multi-line text: a header line and one line per axis with peak/limit and %."""
+        """Multi-line text: a header, then one line per axis with each peak, its limit and
+        the percentage of the limit used (units mm or rad, per s, s^2, s^3)."""
         lines = [f"duration {self.duration:.4f} s, {self.n_samples} samples at "
                  f"{self.ts * 1e3:g} ms, peak feed {self.peak_feed:.2f} mm/s",
-                 f"{'axis':<5}{'velocity (peak/limit)':>30}{'acceleration':>30}{'jerk':>30}"]
+                 f"{'axis':<9}" + "".join(f"{head:>28}" for head in
+                                          ("velocity peak/limit", "acceleration peak/limit",
+                                           "jerk peak/limit"))]
         for i, axis in enumerate(AXES):
             unit = "mm" if axis in ("X", "Y", "Z") else "rad"
             cells = []
-            for peak, limit, suffix in ((self.peak_velocity, self.v_max, "/s"),
-                                        (self.peak_acceleration, self.a_max, "/s^2"),
-                                        (self.peak_jerk, self.j_max, "/s^3")):
+            for peak, limit in ((self.peak_velocity, self.v_max),
+                                (self.peak_acceleration, self.a_max),
+                                (self.peak_jerk, self.j_max)):
                 pct = f"{100 * peak[i] / limit[i]:5.1f}%" if np.isfinite(limit[i]) else "    -"
-                cells.append(f"{peak[i]:10.4g}/{limit[i]:<9.4g}{pct:>7}")
-            lines.append(f"{axis:<5}" + "".join(f"{c:>30}" for c in cells)
-                         + f"  ({unit}{'/s'})")
+                cells.append(f"{peak[i]:9.4g} / {limit[i]:<8.4g}{pct:>7}")
+            lines.append(f"{axis + ' (' + unit + ')':<9}" + "".join(f"{c:>28}" for c in cells))
         return "\n".join(lines)
 
     def __str__(self) -> str:
