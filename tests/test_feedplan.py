@@ -105,6 +105,9 @@ def test_lower_feed_and_jerk_options(machine):
     ({"jerk": np.inf}, "jerk must be positive and finite"),
     ({"programmed_feed": np.r_[np.nan, -5.0, np.ones(498)]},
      "row 2, field 'feed': programmed feed must be positive, got -5 mm/s"),
+    ({"programmed_feed": np.ones(7)},
+     r"field 'feed': programmed feed must have one entry per point, got shape \(7,\)"),
+    ({"grid_step": 0.0}, "grid_step must be positive and finite, got 0.0"),
 ])
 def test_bad_arguments(machine, kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -116,10 +119,21 @@ def test_singular_orientation_is_refused(machine):
     phi = np.linspace(2.6, 3.6, 41)
     P = np.stack([np.linspace(0, 40, 41), np.zeros(41), np.zeros(41)], axis=-1)
     O = np.stack([np.sin(phi), np.zeros(41), np.cos(phi)], axis=-1)
-    with pytest.raises(PrecontourError, match="axis A jumps by .* rad near s = "):
+    with pytest.raises(PrecontourError, match="axis A jumps by .* rad within .* mm near s = .*singular direction"):
         plan_feed(fit_path(P, O), machine)
 
 
 def test_runaway_duration_is_refused(machine):
     with pytest.raises(PrecontourError, match="more than 1000 samples"):
         plan_feed(fit_toolpath(builtin_path("paper")), machine, max_samples=1000)
+
+
+def test_c_jump_too_close_to_vertical_is_refused(machine):
+    # Passing 1e-6 rad from vertical: C would turn half a revolution within one grid step.
+    u = np.linspace(0, 1, 41)
+    phi = 0.5 - u
+    P = np.stack([60 * u, np.zeros_like(u), np.zeros_like(u)], axis=-1)
+    O = np.stack([np.sin(phi), np.full_like(u, 1e-6), np.cos(phi)], axis=-1)
+    O /= np.linalg.norm(O, axis=1)[:, None]
+    with pytest.raises(PrecontourError, match="axis C jumps by .* too close to A = 0"):
+        plan_feed(fit_path(P, O), machine)

@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.interpolate import BSpline, PPoly
 
 from precontour.errors import ToolPathError
@@ -138,3 +140,20 @@ def test_bad_paths_raise_one_line_errors(P, O, match):
     assert "\n" not in message
     if P.shape[1:] == (3,) and P.shape[0] > 1:
         assert message.startswith("part.nc")
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 40))
+def test_random_paths_interpolate_with_unit_orientation(seed, n):
+    rng = np.random.default_rng(seed)
+    P = np.cumsum(rng.uniform(0.5, 5.0, (n, 3)), axis=0)
+    A = 0.2 + np.cumsum(rng.uniform(-0.1, 0.1, n))
+    C = np.cumsum(rng.uniform(-0.2, 0.2, n))
+    O = _orient(A, C)
+    path = fit_path(P, O)
+    Pi, Oi = path(path.s_points)
+    np.testing.assert_allclose(Pi, P, atol=1e-6)
+    np.testing.assert_allclose(Oi, O, atol=1e-6)
+    s = np.linspace(0, path.length, 501)
+    np.testing.assert_allclose(np.linalg.norm(path.orientation(s), axis=1), 1.0, atol=1e-12)
+    assert np.all(np.diff(path.s_points) > 0)

@@ -47,7 +47,8 @@ DEFAULT_ACCELERATION = 2000.0
 DEFAULT_JERK = 50000.0
 #: Share of a limit granted to the centripetal (path-curvature) terms in stage 1.
 CURVATURE_SHARE = 0.5
-#: The plan aims this fraction below each limit; the check on the samples uses the full limit.
+#: The plan aims this fraction below each acceleration, jerk and axis limit (the feed is aimed
+#: at exactly); the check on the samples uses the full limits.
 MARGIN = 0.98
 #: Relative round-off tolerated when checking the sampled trajectory against a limit.
 CHECK_RTOL = 1e-9
@@ -160,6 +161,8 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     L = path.length
     if grid_step is None:
         grid_step = min(feed * ts / 2.0, L / 2000.0)
+    elif not (np.isfinite(grid_step) and grid_step > 0):
+        raise ValueError(f"grid_step must be positive and finite, got {grid_step!r}")
     n_grid = int(np.ceil(L / grid_step)) + 1
     s_grid = np.linspace(0.0, L, n_grid)
     h = s_grid[1] - s_grid[0]
@@ -199,7 +202,12 @@ def _feed_on_grid(path, s_grid, programmed_feed, feed):
     F = np.full(s_grid.size, float(feed))
     if programmed_feed is None:
         return F
-    pf = np.asarray(programmed_feed, dtype=float)[path.point_index]
+    pf = np.asarray(programmed_feed, dtype=float)
+    if pf.ndim != 1 or pf.size <= path.point_index[-1]:
+        raise ToolPathError(f"programmed feed must have one entry per point, got shape "
+                            f"{pf.shape} for at least {path.point_index[-1] + 1} points",
+                            field="feed")
+    pf = pf[path.point_index]
     bad = ~(np.isnan(pf) | (pf > 0))
     if bad[1:].any():
         i = int(np.flatnonzero(bad[1:])[0]) + 1
@@ -243,16 +251,21 @@ def _erode(values, speed, reach, h):
 
 
 def _check_continuity(geometry, s_grid):
-    """Refuse paths whose rotary commands jump (e.g. through the A-C trunnion's other pole,
-    tool pointing down): no feed would make them feasible."""
-    dq = geometry[2] * (s_grid[1] - s_grid[0])
-    # More than 1 rad between neighbouring grid points (<= 0.05 mm apart) is a jump.
+    """Refuse paths whose rotary commands jump between neighbouring grid points: through the
+    A-C trunnion's other pole (tool pointing down, A jumps) or so close to A = 0 that C
+    turns by more than a radian within one grid step; no feed would make them feasible."""
+    h = s_grid[1] - s_grid[0]
+    dq = geometry[2] * h
     jump = dq[:, 3:] > 1.0
     if jump.any():
         k, axis = np.unravel_index(np.flatnonzero(jump.ravel())[0], jump.shape)
-        raise PrecontourError(f"axis {AXES[3 + axis]} jumps by {dq[k, 3 + axis]:.6g} rad near "
-                              f"s = {s_grid[k]:.6g} mm of the path: the orientation passes "
-                              "through a singular direction of the kinematics")
+        name = AXES[3 + axis]
+        why = ("the orientation passes through a singular direction of the kinematics"
+               if name == "A" else "the orientation passes too close to A = 0 (tool along "
+               "the C axis) for C to follow; move the path off that direction or pass "
+               "exactly through it")
+        raise PrecontourError(f"axis {name} jumps by {dq[k, 3 + axis]:.6g} rad within "
+                              f"{h:.3g} mm near s = {s_grid[k]:.6g} mm of the path: {why}")
 
 
 def _limit_curves(geometry, feed_of_s, lim, scale, reach, h):
@@ -260,8 +273,8 @@ def _limit_curves(geometry, feed_of_s, lim, scale, reach, h):
     m, c = MARGIN, CURVATURE_SHARE
     with np.errstate(divide="ignore"):
         candidates = [
-            np.full(dP.shape, m * lim.feed),
-            m * feed_of_s / dP,
+            np.full(dP.shape, lim.feed),
+            feed_of_s / dP,
             np.sqrt(c * m * lim.acceleration / ddP),
             np.min(m * lim.v / dq, axis=1),
             np.min(np.sqrt(c * m * lim.a / ddq), axis=1),
