@@ -17,11 +17,11 @@ in four vectorized stages, the classic CNC way:
    T = 2 a_tip / j_tip, which bounds the tangential jerk by 2 a/T <= j_tip by construction.
    Because the filter averages velocities over T, the limit curves of stage 1 are first
    eroded: each grid point's limit also applies within the distance its own speed covers in
-   T (a running minimum in s whose reach grows with the local speed limit).
+   T/2 (a running minimum in s whose reach grows with the local speed limit).
 4. Sampling at the servo period and a check of every limit on every sample with finite
    differences; where an axis limit is still exceeded (the filter and the finite grids are
    only nearly exact for nonlinear kinematics) v_lim is lowered locally and the plan is
-   redone. Convergence is usually within 2-4 passes.
+   redone. The built-in paths need one pass; paths grazing A = 0 usually two.
 
 Why not a library: TOPP-RA (time-optimal path parameterization) handles velocity and
 acceleration constraints but not jerk, and its output would still need smoothing; Ruckig
