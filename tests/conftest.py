@@ -19,23 +19,35 @@ def smoothstep7(s):
     return 35 * s**4 - 84 * s**5 + 70 * s**6 - 20 * s**7
 
 
-def analytic_axis(t, duration, start, travel, wiggle, freq):
-    """A smooth axis motion with its first three derivatives computed exactly (numpy.polynomial
-    for the ramp, product rule for the wiggle), returned as (x, v, a, j)."""
-    from numpy.polynomial import Polynomial as Poly
+class AnalyticAxis:
+    """A smooth rest-to-rest axis motion start + travel*ramp(s) + wiggle*bump(s)*sin(2 pi f t),
+    s = t / duration, with exact derivatives (numpy.polynomial and the Leibniz rule)."""
 
-    ramp = Poly([0, 0, 0, 0, 35, -84, 70, -20])
-    bump = Poly([0, 0, 0, 0, 1]) * Poly([1, -1]) ** 4 * 256   # zero v, a, j at both ends
-    s = t / duration
-    derivs = []
-    for k in range(4):
-        r = ramp.deriv(k)(s) / duration**k if k else ramp(s)
-        # wiggle * bump(s) * sin(2 pi f t): Leibniz rule for the k-th derivative
-        total = 0.0
+    def __init__(self, duration, start, travel, wiggle, freq):
+        from numpy.polynomial import Polynomial as Poly
+
+        ramp = Poly([0, 0, 0, 0, 35, -84, 70, -20])
+        bump = Poly([0, 0, 0, 0, 1]) * Poly([1, -1]) ** 4 * 256   # zero v, a, j at both ends
+        self.duration, self.start, self.travel, self.wiggle, self.freq = (
+            duration, start, travel, wiggle, freq)
+        self.ramp = [ramp.deriv(k) if k else ramp for k in range(4)]
+        self.bump = [bump.deriv(k) if k else bump for k in range(4)]
+
+    def __call__(self, t, k=0):
+        """k-th time derivative at t (k = 0..3)."""
         from math import comb
+
+        t = np.asarray(t, dtype=float)
+        s = t / self.duration
+        omega = 2 * np.pi * self.freq
+        total = 0.0
         for i in range(k + 1):
-            b = bump.deriv(i)(s) / duration**i if i else bump(s)
-            w = (2 * np.pi * freq) ** (k - i) * np.sin(2 * np.pi * freq * t + (k - i) * np.pi / 2)
-            total = total + comb(k, i) * b * w
-        derivs.append(start * (k == 0) + travel * r + wiggle * total)
-    return tuple(derivs)
+            b = self.bump[i](s) / self.duration**i
+            total = total + comb(k, i) * b * omega ** (k - i) * np.sin(omega * t + (k - i) * np.pi / 2)
+        return self.start * (k == 0) + self.travel * self.ramp[k](s) / self.duration**k + self.wiggle * total
+
+
+def analytic_axis(t, duration, start, travel, wiggle, freq):
+    """(x, v, a, j) of :class:`AnalyticAxis` at t."""
+    axis = AnalyticAxis(duration, start, travel, wiggle, freq)
+    return tuple(axis(t, k) for k in range(4))

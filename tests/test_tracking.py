@@ -9,7 +9,7 @@ from precontour.errors import UnsupportedControllerError
 from precontour.splinefit import fit_min_jerk
 from precontour.tracking import PartialFractions, predict_tracking, tracking_error
 
-from conftest import analytic_axis
+from conftest import AnalyticAxis, analytic_axis
 
 DURATION = 2.5
 T = np.round(np.arange(0, DURATION + 5e-4, 1e-3), 12)
@@ -49,20 +49,20 @@ def test_prediction_from_samples_matches_exact_analytic_error(machine, controlle
     integrating J e''' + (B + K kd) e'' + K kp e' + K ki e = J X''' + B X'' (spec section 4)."""
     specs = [(-40, 80, 6, 2.0), (10, 30, 4, 3.0), (300, -20, 3, 1.5), (0.2, 1.2, 0.05, 2.0),
              (-1.0, 2.0, 0.1, 2.5)]
-    derivs = [analytic_axis(T, DURATION, *s) for s in specs]
-    q = np.stack([d[0] for d in derivs], axis=1)
+    motions = [AnalyticAxis(DURATION, *s) for s in specs]
+    q = np.stack([m(T) for m in motions], axis=1)
     ctrl = machine.controller(controller)
     models = ctrl.error_models(machine.drives)
     prediction = predict_tracking(T, q, models)
     e_pred = prediction(T)
     for i, (drive, gains) in enumerate(zip(machine.drives, ctrl.axes)):
         K, J, B = drive.gain, drive.J, drive.B
-        spec = specs[i]
+        motion = motions[i]
 
-        def rhs(t, y, spec=spec):
-            _, _, a, j = analytic_axis(np.array([t]), DURATION, *spec)
+        def rhs(t, y, motion=motion):
             e, e1, e2 = y
-            e3 = (J * j[0] + B * a[0] - (B + K * gains.kd) * e2 - K * gains.kp * e1 - K * gains.ki * e) / J
+            forcing = J * motion(t, 3) + B * motion(t, 2)
+            e3 = (forcing - (B + K * gains.kd) * e2 - K * gains.kp * e1 - K * gains.ki * e) / J
             return [e1, e2, e3]
 
         exact = solve_ivp(rhs, (0, DURATION), [0, 0, 0], method="DOP853", rtol=1e-10,

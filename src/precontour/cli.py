@@ -15,11 +15,19 @@ import numpy as np
 
 from . import __version__
 from .drives import AXES, ROTARY_AXES
-from .errors import PrecontourError
+from .builtin_paths import BUILTIN_PATHS, builtin_path
+from .compensation import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
+                           compensate)
+from .contour import ReferencePath, contour_errors
+from .errors import InputError, PrecontourError
+from .feedplan import DEFAULT_FEED
 from .machine import load_machine
+from .simulation import simulate
 from .splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
-from .tables import read_trajectory, write_columns
+from .tables import read_trajectory, trajectory_columns, write_columns
+from .toolpath import read_toolpath
 from .tracking import predict_tracking
+from .trajgen import DEFAULT_DWELL, generate_trajectory, summarize
 
 EXIT_USAGE = 2
 
@@ -60,6 +68,76 @@ def build_parser() -> argparse.ArgumentParser:
     predict.add_argument("-o", "--output", type=Path, required=True,
                          help="output file (.csv/.npz/.parquet): t,eX,eY,eZ,eA,eC")
     predict.set_defaults(run=run_predict)
+
+    trajectory = commands.add_parser(
+        "trajectory", help="tool path in, smooth time-stamped five-axis trajectory out",
+        description="Read a tool path (CL-data CSV, APT CL data or G-code) or take a built-in "
+                    "path, fit C3 geometric splines, plan a jerk-limited feed within the "
+                    "machine's limits and sample axis commands at the servo period.")
+    source = trajectory.add_mutually_exclusive_group(required=True)
+    source.add_argument("toolpath", nargs="?", type=Path,
+                        help="tool path file: .csv (Px,Py,Pz,Oi,Oj,Ok[,F]), .apt/.cls/.cl, "
+                             "or G-code .nc/.ngc/.gcode/.tap/.mpf")
+    source.add_argument("--builtin", choices=BUILTIN_PATHS, metavar="NAME",
+                        help=f"built-in test path: {', '.join(BUILTIN_PATHS)}")
+    trajectory.add_argument("--machine", default="zhang2013",
+                            help="built-in machine name or machine TOML file (default: zhang2013)")
+    trajectory.add_argument("--feed", type=_positive_float, default=DEFAULT_FEED, metavar="MM_S",
+                            help=f"maximum tool tip feed in mm/s (default {DEFAULT_FEED:g})")
+    trajectory.add_argument("--ts", type=_positive_float, default=None, metavar="S",
+                            help="sampling period in s (default: the machine's servo period)")
+    trajectory.add_argument("--feed-units", choices=("mm/min", "mm/s"), default="mm/min",
+                            help="unit of programmed feeds in CL-data CSV/APT (default mm/min)")
+    trajectory.add_argument("--dwell", type=_nonnegative_float, default=DEFAULT_DWELL, metavar="S",
+                            help="hold the final position this long so the drives settle "
+                                 f"inside the trajectory (default {DEFAULT_DWELL:g} s)")
+    trajectory.add_argument("-o", "--output", type=Path, required=True,
+                            help="output file (.csv/.npz/.parquet): "
+                                 "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
+    trajectory.set_defaults(run=run_trajectory)
+
+    compensate = commands.add_parser(
+        "compensate", help="pre-compensate axis commands so predicted contour errors cancel",
+        description="Predict the contour errors of a trajectory and rewrite its axis commands "
+                    "(orientation first, then tool tip) so that they cancel.")
+    compensate.add_argument("trajectory", type=Path,
+                            help="trajectory file with t,X,Y,Z,A,C and the reference "
+                                 "Px,Py,Pz,Oi,Oj,Ok")
+    _add_machine_options(compensate)
+    compensate.add_argument("--method", choices=METHODS, default="contour",
+                            help="contour: contour-error pre-compensation (default); tracking: "
+                                 "add the predicted axis tracking errors (the paper's baseline)")
+    compensate.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
+                            help="largest number of compensation passes; stops early when the "
+                                 "predicted contour errors stop improving (default 1)")
+    _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
+    compensate.add_argument("-o", "--output", type=Path, required=True,
+                            help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
+    compensate.set_defaults(run=run_compensate)
+
+    simulate = commands.add_parser(
+        "simulate", help="run axis commands on the time-domain virtual machine",
+        description="Simulate the five drives (discrete controllers at the servo period, "
+                    "friction, feed-forward friction compensation) following axis commands.")
+    simulate.add_argument("commands", type=Path, help="command file with t,X,Y,Z,A,C")
+    _add_machine_options(simulate)
+    simulate.add_argument("--reference", type=Path,
+                          help="reference trajectory (with Px..Ok) to measure contour errors "
+                               "against (default: the command file's own Px..Ok, if any)")
+    simulate.add_argument("--mode", choices=("discrete", "continuous"), default="discrete",
+                          help="discrete controller with zero-order hold (default) or the "
+                               "continuous-equivalent controller (the exact linear model)")
+    simulate.add_argument("--friction", choices=("on", "off"), default="on",
+                          help="friction in the drives (default on)")
+    simulate.add_argument("--ff-friction", choices=("on", "off"), default="on",
+                          help="feed-forward friction compensation (default on)")
+    simulate.add_argument("--inertia-scale", type=_positive_float, default=1.0, metavar="K",
+                          help="true inertia = K x nominal (mis-identified machine; default 1)")
+    simulate.add_argument("--damping-scale", type=_nonnegative_float, default=1.0, metavar="K",
+                          help="true damping = K x nominal (default 1)")
+    simulate.add_argument("-o", "--output", type=Path, required=True,
+                          help="output file: t,X,Y,Z,A,C (actual) [+ eps_tip,eps_ori]")
+    simulate.set_defaults(run=run_simulate)
     return parser
 
 
@@ -70,22 +148,40 @@ def _add_machine_options(parser: argparse.ArgumentParser) -> None:
                         help="controller name in the machine file (default: pid-low)")
 
 
-def _add_fit_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--tol-linear", type=_positive_float, default=DEFAULT_TOL_LINEAR,
-                        metavar="MM", help="spline fit tolerance of X, Y, Z in mm "
-                                           f"(default {DEFAULT_TOL_LINEAR:g} = 1 um)")
-    parser.add_argument("--tol-rotary", type=_positive_float, default=DEFAULT_TOL_ROTARY,
-                        metavar="RAD", help="spline fit tolerance of A, C in rad "
-                                            f"(default {DEFAULT_TOL_ROTARY:g} = 1 urad)")
+def _add_fit_options(parser: argparse.ArgumentParser, linear: float = DEFAULT_TOL_LINEAR,
+                     rotary: float = DEFAULT_TOL_ROTARY) -> None:
+    parser.add_argument("--tol-linear", type=_positive_float, default=linear,
+                        metavar="MM", help=f"spline fit tolerance of X, Y, Z in mm (default {linear:g})")
+    parser.add_argument("--tol-rotary", type=_positive_float, default=rotary,
+                        metavar="RAD", help=f"spline fit tolerance of A, C in rad (default {rotary:g})")
 
 
-def _positive_float(text: str) -> float:
+def _number(text: str, *, allow_zero: bool) -> float:
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (value > 0 and np.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    if not (np.isfinite(value) and (value > 0 or (allow_zero and value == 0))):
+        kind = "number >= 0" if allow_zero else "positive number"
+        raise argparse.ArgumentTypeError(f"must be a {kind}, got {text!r}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    return _number(text, allow_zero=False)
+
+
+def _nonnegative_float(text: str) -> float:
+    return _number(text, allow_zero=True)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
     return value
 
 
@@ -99,18 +195,105 @@ def run_predict(args: argparse.Namespace) -> int:
     e = prediction(traj.t)
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
+    contour = None
+    if traj.has_reference:
+        contour = contour_errors(ReferencePath.from_trajectory(traj), traj.q - e,
+                                 machine.kinematics)
+        columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
     write_columns(args.output, columns, inputs=[args.trajectory])
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
     print(_axis_table(prediction.fits.n_knots, np.abs(e).max(axis=0)))
+    if contour is not None:
+        print("predicted contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {elapsed:.3f} s")
     return 0
 
 
+def run_trajectory(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    machine = load_machine(args.machine)
+    if args.builtin:
+        toolpath = builtin_path(args.builtin)
+    else:
+        toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units)
+    ts = machine.servo_period if args.ts is None else args.ts
+    traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell)
+    inputs = [] if args.builtin else [args.toolpath]
+    write_columns(args.output, trajectory_columns(traj), inputs=inputs)
+    print(summarize(traj, machine).format())
+    print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
+    return 0
+
+
+def run_compensate(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    machine = load_machine(args.machine)
+    models = machine.controller(args.controller).error_models(machine.drives)
+    traj = read_trajectory(args.trajectory)
+    if not traj.has_reference:
+        raise InputError("compensation needs the reference tool path columns "
+                         "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour trajectory')",
+                         source=str(args.trajectory), field="Px")
+
+    def progress(n, summary):
+        print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
+              f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
+
+    result = compensate(traj, machine.kinematics, models, method=args.method,
+                        iterations=args.iterations, tol_linear=args.tol_linear,
+                        tol_rotary=args.tol_rotary, progress=progress)
+    write_columns(args.output, trajectory_columns(result.trajectory), inputs=[args.trajectory])
+    print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
+          f"{result.iterations} pass(es) kept")
+    print("predicted before: " + _contour_line(result.before))
+    print("predicted after:  " + _contour_line(result.after))
+    print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
+    return 0
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    machine = load_machine(args.machine)
+    commands = read_trajectory(args.commands)
+    reference_traj = read_trajectory(args.reference) if args.reference else commands
+    if args.reference and not np.array_equal(reference_traj.t, commands.t):
+        raise InputError("reference and command files must have the same time stamps",
+                         source=str(args.reference), field="t")
+    result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
+                      friction=args.friction == "on", ff_friction=args.ff_friction == "on",
+                      inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
+    columns = {"t": result.t}
+    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
+    contour = None
+    if reference_traj.has_reference:
+        contour = contour_errors(ReferencePath.from_trajectory(reference_traj), result.q_act,
+                                 machine.kinematics)
+        columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
+    inputs = [args.commands] + ([args.reference] if args.reference else [])
+    write_columns(args.output, columns, inputs=inputs)
+    print(f"simulated {commands.n_samples} samples on {machine.name}, controller "
+          f"{args.controller}, {args.mode}, friction {args.friction}, feed-forward friction "
+          f"{args.ff_friction}")
+    print(_axis_table(None, result.max_abs_error))
+    if contour is not None:
+        print("measured contour errors: " + _contour_line(contour))
+    print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
+    return 0
+
+
+def _contour_line(errors) -> str:
+    s = errors.summary()
+    return (f"tip max {s['tip_max_um']:.3f} um, mean {s['tip_mean_um']:.3f} um; orientation "
+            f"max {s['ori_max_mrad']:.4f} mrad, mean {s['ori_mean_mrad']:.4f} mrad")
+
+
 def _axis_table(knots, max_abs_e) -> str:
-    lines = ["axis  knots      max|e|"]
-    for axis, n, value in zip(AXES, knots, max_abs_e):
-        unit, scale = ("mrad", 1e3) if axis in ROTARY_AXES else ("um", 1e3)
-        lines.append(f"{axis:>4}  {n:5d}  {value * scale:10.3f} {unit}")
+    """Per-axis table: knots (when given) and max |e| in um or mrad."""
+    lines = ["axis  knots      max|e|" if knots is not None else "axis      max|e|"]
+    for i, (axis, value) in enumerate(zip(AXES, max_abs_e)):
+        unit = "mrad" if axis in ROTARY_AXES else "um"
+        count = f"  {knots[i]:5d}" if knots is not None else ""
+        lines.append(f"{axis:>4}{count}  {value * 1e3:10.3f} {unit}")
     return "\n".join(lines)

@@ -40,11 +40,12 @@ class Friction:
     def torque(self, w: np.ndarray) -> np.ndarray:
         """Friction torque Tf(w) in N m for motor speed(s) ``w`` in rad/s; Tf(0) = 0."""
         w = np.asarray(w, dtype=float)
-        pos = self.Ts_pos * np.exp(-w / self.W1_pos) + self.Tc_pos * (1.0 - np.exp(-w / self.W2_pos))
-        neg = self.Ts_neg * np.exp(-w / self.W1_neg) + self.Tc_neg * (1.0 - np.exp(-w / self.W2_neg))
-        # The unused branch of each np.where may overflow for large |w|; it is discarded.
-        with np.errstate(over="ignore", invalid="ignore"):
-            return np.where(w > 0, pos, np.where(w < 0, neg, 0.0))
+        # Each side's formula is evaluated on its own side only; the other side would overflow.
+        w_pos = np.maximum(w, 0.0)
+        w_neg = np.minimum(w, 0.0)
+        pos = self.Ts_pos * np.exp(-w_pos / self.W1_pos) + self.Tc_pos * (1.0 - np.exp(-w_pos / self.W2_pos))
+        neg = self.Ts_neg * np.exp(-w_neg / self.W1_neg) + self.Tc_neg * (1.0 - np.exp(-w_neg / self.W2_neg))
+        return np.where(w > 0, pos, np.where(w < 0, neg, 0.0))
 
 
 @dataclass(frozen=True)

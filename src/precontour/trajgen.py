@@ -19,9 +19,13 @@ from .pathspline import L_EQ, fit_toolpath
 from .trajectory import Trajectory
 
 
+#: Default time (s) the final command is held so that the drives settle inside the trajectory.
+DEFAULT_DWELL = 0.2
+
+
 def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
                         acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
-                        l_eq: float = L_EQ) -> Trajectory:
+                        l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL) -> Trajectory:
     """Time-stamped axis commands that follow ``toolpath`` on ``machine`` within its limits.
 
     Parameters
@@ -40,6 +44,11 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
         Tool tip acceleration (mm/s^2) and tangential jerk (mm/s^3) limits.
     l_eq : float
         Equivalent length of one radian of tool rotation in the path parameter, mm/rad.
+    dwell : float
+        Seconds the final position is held at the end. The drives lag their commands, so
+        when the command stops the machine has not arrived yet; the dwell keeps that
+        settling motion inside the trajectory, where errors are measured and where
+        pre-compensation can act on it. 0 ends the trajectory when the command stops.
 
     Returns
     -------
@@ -51,7 +60,14 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
     path = fit_toolpath(toolpath, l_eq=l_eq)
     profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
                         programmed_feed=toolpath.feed)
-    return Trajectory(t=profile.t, q=profile.q, P=profile.P, O=profile.O)
+    t, q, P, O = profile.t, profile.q, profile.P, profile.O
+    if not (dwell >= 0 and np.isfinite(dwell)):
+        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    n_hold = int(round(dwell / ts))
+    if n_hold:
+        t = np.concatenate([t, t[-1] + ts * np.arange(1, n_hold + 1)])
+        q, P, O = (np.concatenate([a, np.repeat(a[-1:], n_hold, axis=0)]) for a in (q, P, O))
+    return Trajectory(t=t, q=q, P=P, O=O)
 
 
 @dataclass(frozen=True)
