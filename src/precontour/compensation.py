@@ -102,7 +102,6 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         raise ValueError(f"iterations must be >= 1, got {iterations}")
     reference = reference or ReferencePath.from_trajectory(traj)
     t = traj.t
-    c_ref = traj.q[:, 4]
 
     def predict(q):
         return predicted_actual(t, q, models, tol_linear, tol_rotary)
@@ -120,7 +119,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:
-            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, c_ref)
+            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict)
         q_cmd = q_new
         q_act = predict(q_cmd)
         after = errors_of(q_act)
@@ -137,7 +136,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                               method=method)
 
 
-def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, c_ref):
+def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):
     """One pass of spec section 6, steps 1-5, with the current command in place of the
     reference command (identical on the first pass)."""
     P_cmd, O_cmd = kinematics.forward(q_cmd)
@@ -146,16 +145,49 @@ def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, c_ref):
     w = reference.closest_orientation(O1, traj.t)
     O_star = _unit(reference.orientation(w))
     O_centre = _unit(O_cmd + O_star)
-    O_comp = 2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1
-    O_comp = _unit(O_comp)
+    O_comp = _unit(2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1)
+    rotary = _rotary_towards(kinematics, q_cmd[:, 3], q_cmd[:, 4], O_comp)
     # Step 3: orientation-corrected command, predicted again.
-    q2 = kinematics.inverse(P_cmd, O_comp, c_near=c_ref)
+    q2 = np.concatenate([kinematics.linear_axes(P_cmd, *rotary.T), rotary], axis=1)
     P3, _ = kinematics.forward(predict(q2))
     # Step 4: add the predicted tip contour error vector to the commanded tip.
     u = reference.closest_tip(P3, traj.t)
     P_comp = P_cmd + (reference.tip(u) - P3)
-    # Step 5: back to axis commands, on the reference command's branch.
-    return kinematics.inverse(P_comp, O_comp, c_near=c_ref)
+    # Step 5: back to axis commands.
+    return np.concatenate([kinematics.linear_axes(P_comp, *rotary.T), rotary], axis=1)
+
+
+#: Singularity-robust rotary correction near the pole A = 0 (tool along C): damped least
+#: squares with damping that grows from 0 where |sin A| = POLE_ZONE to POLE_DAMPING at the pole.
+POLE_ZONE = 0.1
+POLE_DAMPING = 0.05
+ROTARY_NEWTON_STEPS = 3
+
+
+def _rotary_towards(kinematics, A, C, O_target):
+    """A, C (shape (N, 2)) near the commanded ones that point the tool along ``O_target``.
+
+    The corrections are small (below a milliradian), so a few Gauss-Newton steps from the
+    command converge; they keep C continuous where an exact inverse kinematics would flip it by
+    pi beside the pole. Inside the pole zone the damping gives up the part of the correction
+    that only a fast C rotation could make, as singularity-robust inverses do.
+    """
+    A = np.array(A, dtype=float)
+    C = np.array(C, dtype=float)
+    for _ in range(ROTARY_NEWTON_STEPS):
+        O = np.stack([np.sin(A) * np.sin(C), np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
+        jac = kinematics.orientation_jacobian(A, C)                     # (N, 3, 2)
+        residual = O_target - O
+        normal = np.einsum("nki,nkj->nij", jac, jac)
+        sin_a = np.abs(np.sin(A))
+        damping = np.where(sin_a < POLE_ZONE,
+                           POLE_DAMPING**2 * (1.0 - (sin_a / POLE_ZONE) ** 2), 0.0)
+        normal[:, 0, 0] += damping
+        normal[:, 1, 1] += damping
+        step = np.linalg.solve(normal, np.einsum("nki,nk->ni", jac, residual)[..., None])[..., 0]
+        A += step[:, 0]
+        C += step[:, 1]
+    return np.stack([A, C], axis=1)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

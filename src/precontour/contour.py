@@ -17,15 +17,19 @@ from scipy.interpolate import BSpline, make_interp_spline
 from .errors import InputError
 from .trajectory import Trajectory
 
-#: Half width (s) of the parameter window searched around the time-corresponding point.
+#: The closest point is searched within DEFAULT_WINDOW seconds of the time-corresponding
+#: point, widened to DEFAULT_WINDOW_LENGTH of path progress (tip arc length plus
+#: ORIENTATION_LENGTH mm per rad of orientation change) where the path moves slowly: near a stop
+#: the actual machine can lag far behind in time while being close in space.
 DEFAULT_WINDOW = 0.05
-#: Largest Newton step (s); keeps the iteration local where the path slows to a stop.
+DEFAULT_WINDOW_LENGTH = 2.0
+ORIENTATION_LENGTH = 100.0
+NEWTON_ITERATIONS = 60
+#: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
-NEWTON_ITERATIONS = 30
-#: Sample offsets tried before Newton's method, to start it in the right basin even where the
-#: reference stands still (Newton's method alone cannot leave a flat stretch).
-SEED_OFFSETS = np.array([0, -1, 1, -2, 2, -3, 3, -5, 5, -8, 8, -12, 12, -18, 18, -25, 25,
-                         -35, 35, -50, 50])
+#: Newton's method starts from the nearest reference sample in the window, found by scanning
+#: the window's samples with a stride that keeps at most about this many per side.
+SEED_SAMPLES_PER_SIDE = 25
 
 
 @dataclass(frozen=True)
@@ -89,86 +93,124 @@ class ReferencePath:
         return cls(t=t, tip=tip, orientation=orientation, P=P, O=O)
 
     def closest_tip(self, P_act: np.ndarray, u0: np.ndarray | None = None,
-                    window: float = DEFAULT_WINDOW) -> np.ndarray:
+                    window: float = DEFAULT_WINDOW,
+                    window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
         """Parameter u* of the reference point closest to each ``P_act`` (spec Eq. 19):
-        P'(u*) . (P(u*) - P_act) = 0, searched within ``u0 +- window``."""
+        P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``."""
         curve, d1, d2 = self.tip, self.tip.derivative(), self.tip.derivative(2)
 
         def gradient_and_curvature(u):
             r = curve(u) - P_act
             v = d1(u)
-            return np.einsum("ij,ij->i", v, r), np.einsum("ij,ij->i", d2(u), r) + np.einsum("ij,ij->i", v, v)
-        seed = self._seed(u0, window, lambda k: np.linalg.norm(self.P[k] - P_act, axis=1))
-        u = self._newton(gradient_and_curvature, seed, u0, window)
-        # Newton finds a stationary point; also try the window ends and keep the nearest.
-        return self._best_of(u, u0, window, lambda uu: np.linalg.norm(curve(uu) - P_act, axis=1))
+            return (np.einsum("ij,ij->i", v, r),
+                    np.einsum("ij,ij->i", d2(u), r) + np.einsum("ij,ij->i", v, v))
+
+        def distance(u):
+            return np.linalg.norm(curve(u) - P_act, axis=1)
+        return self._search(u0, window, window_length, gradient_and_curvature, distance,
+                            lambda k, i: np.linalg.norm(self.P[k] - P_act[i], axis=1))
 
     def closest_orientation(self, O_act: np.ndarray, w0: np.ndarray | None = None,
-                            window: float = DEFAULT_WINDOW) -> np.ndarray:
+                            window: float = DEFAULT_WINDOW,
+                            window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
         """Parameter w* of the reference orientation closest to each ``O_act`` (spec Eq. 21):
-        O'(w*) . O_act = 0 on the unit sphere, searched within ``w0 +- window``."""
+        O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``."""
         curve, d1, d2 = (self.orientation, self.orientation.derivative(),
                          self.orientation.derivative(2))
 
         def gradient_and_curvature(w):
             # minimize -O(w) . O_act; |O(w)| = 1 up to the interpolation's round-off
             return (-np.einsum("ij,ij->i", d1(w), O_act), -np.einsum("ij,ij->i", d2(w), O_act))
-        seed = self._seed(w0, window, lambda k: _angle(self.O[k], O_act))
-        w = self._newton(gradient_and_curvature, seed, w0, window)
-        return self._best_of(w, w0, window, lambda ww: _angle(curve(ww), O_act))
+        return self._search(w0, window, window_length, gradient_and_curvature,
+                            lambda w: _angle(curve(w), O_act),
+                            lambda k, i: _angle(self.O[k], O_act[i]))
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
-               window: float = DEFAULT_WINDOW) -> ContourErrors:
+               window: float = DEFAULT_WINDOW,
+               window_length: float = DEFAULT_WINDOW_LENGTH) -> ContourErrors:
         """Contour errors of actual tips ``P_act`` and orientations ``O_act`` sampled at
         ``t`` (default: the reference's own time stamps)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        u = self.closest_tip(P_act, t, window)
-        w = self.closest_orientation(O_act, t, window)
+        u = self.closest_tip(P_act, t, window, window_length)
+        w = self.closest_orientation(O_act, t, window, window_length)
         tip = np.linalg.norm(self.tip(u) - P_act, axis=1)
         orientation = _angle(self.orientation(w), O_act)
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
 
-    def _seed(self, start, window, distance):
-        """Best reference sample near each start parameter (within the window)."""
-        start = self.t if start is None else np.asarray(start, dtype=float)
-        step = (self.t[-1] - self.t[0]) / (self.t.size - 1)
-        base = np.rint((start - self.t[0]) / step).astype(np.intp)
-        reach = int(np.floor(window / step))
-        offsets = SEED_OFFSETS[np.abs(SEED_OFFSETS) <= reach]
-        best_k = np.clip(base, 0, self.t.size - 1)
-        best = distance(best_k)
-        for offset in offsets[1:]:
-            k = np.clip(base + offset, 0, self.t.size - 1)
-            d = distance(k)
-            better = d < best
-            best = np.where(better, d, best)
-            best_k = np.where(better, k, best_k)
-        return self.t[best_k]
+    @property
+    def progress(self) -> np.ndarray:
+        """Path progress at each reference sample: tip arc length plus ORIENTATION_LENGTH mm
+        per rad of orientation change (monotone), mm."""
+        step = (np.linalg.norm(np.diff(self.P, axis=0), axis=1)
+                + ORIENTATION_LENGTH * _angle(self.O[:-1], self.O[1:]))
+        return np.concatenate([[0.0], np.cumsum(step)])
 
-    def _newton(self, gradient_and_curvature, seed, start, window):
+    def _window(self, start, window, window_length):
+        """Sample-index bounds [lo, hi] of the search window of each start parameter."""
+        n = self.t.size
+        step = (self.t[-1] - self.t[0]) / (n - 1)
+        base = np.clip(np.rint((start - self.t[0]) / step).astype(np.intp), 0, n - 1)
+        reach = int(np.floor(window / step))
+        progress = self.progress
+        lo = np.minimum(np.maximum(base - reach, 0),
+                        np.searchsorted(progress, progress[base] - window_length, side="left"))
+        hi = np.maximum(np.minimum(base + reach, n - 1),
+                        np.searchsorted(progress, progress[base] + window_length, side="right") - 1)
+        return base, lo, hi
+
+    def _search(self, start, window, window_length, gradient_and_curvature, distance,
+                sample_distance):
+        """Seed on the reference samples inside the window, refine by safeguarded Newton,
+        and keep the best of the refined point and the window ends."""
         start = self.t if start is None else np.asarray(start, dtype=float)
-        lo = np.maximum(start - window, self.t[0])
-        hi = np.minimum(start + window, self.t[-1])
-        u = np.clip(seed, lo, hi)
+        base, lo, hi = self._window(start, window, window_length)
+        best_k = base.copy()
+        best = sample_distance(base, slice(None))
+        reach = int(round(window * (self.t.size - 1) / (self.t[-1] - self.t[0])))
+        stride = max(1, reach // SEED_SAMPLES_PER_SIDE)
+        for offset in range(int((lo - base).min()), int((hi - base).max()) + 1, stride):
+            if offset == 0:
+                continue
+            k = base + offset
+            inside = np.flatnonzero((k >= lo) & (k <= hi))  # windows stretch only near stops
+            d = sample_distance_at(sample_distance, k, inside)
+            better = d < best[inside]
+            best[inside[better]] = d[better]
+            best_k[inside[better]] = k[inside[better]]
+        # The minimum lies within one sample of the best sample: bracket it there and refine
+        # by Newton's method safeguarded with bisection on the sign of the gradient.
+        a = self.t[np.maximum(best_k - 1, lo)]
+        b = self.t[np.minimum(best_k + 1, hi)]
+        g_a, _ = gradient_and_curvature(a)
+        g_b, _ = gradient_and_curvature(b)
+        interior = (g_a < 0) & (g_b > 0)
+        # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
+        # stands still) take bounded Newton / gradient steps inside the window.
+        u_lo, u_hi = self.t[lo], self.t[hi]
+        u = self.t[best_k].copy()
         for _ in range(NEWTON_ITERATIONS):
             g, c = gradient_and_curvature(u)
-            # Where the distance is not convex (c <= 0) take a bounded gradient step instead.
-            step = np.where(c > 0, -g / np.where(c > 0, c, 1.0), -np.sign(g) * MAX_STEP)
-            step = np.clip(step, -MAX_STEP, MAX_STEP)
-            u_new = np.clip(u + step, lo, hi)
-            if np.all(np.abs(u_new - u) <= 1e-13 * (1.0 + np.abs(u))):
+            b = np.where(g > 0, u, b)
+            a = np.where(g > 0, a, u)
+            newton = u - g / np.where(c > 0, c, np.inf)
+            inside = (c > 0) & (newton > a) & (newton < b)
+            bracketed = np.where(inside, newton, 0.5 * (a + b))
+            free_step = np.where(c > 0, -g / np.where(c > 0, c, 1.0), -np.sign(g) * MAX_STEP)
+            free = np.clip(u + np.clip(free_step, -MAX_STEP, MAX_STEP), u_lo, u_hi)
+            u_new = np.where(interior, bracketed, free)
+            if np.all(np.abs(u_new - u) <= 1e-14 * (1.0 + np.abs(u))):
                 u = u_new
                 break
             u = u_new
-        return u
-
-    def _best_of(self, u, start, window, distance):
-        start = self.t if start is None else np.asarray(start, dtype=float)
-        candidates = [u, np.maximum(start - window, self.t[0]), np.minimum(start + window, self.t[-1])]
+        candidates = [u, self.t[best_k]]
         values = np.stack([distance(c) for c in candidates])
-        best = np.argmin(values, axis=0)
-        return np.choose(best, candidates)
+        return np.choose(np.argmin(values, axis=0), candidates)
+
+
+def sample_distance_at(sample_distance, k: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Distances from the actual points ``inside`` to reference samples ``k[inside]``."""
+    return sample_distance(k[inside], inside)
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -179,7 +221,8 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
-                   t: np.ndarray | None = None, window: float = DEFAULT_WINDOW) -> ContourErrors:
+                   t: np.ndarray | None = None, window: float = DEFAULT_WINDOW,
+                   window_length: float = DEFAULT_WINDOW_LENGTH) -> ContourErrors:
     """Contour errors of actual axis positions ``q_act`` (N, 5) against ``reference``."""
     P_act, O_act = kinematics.forward(q_act)
-    return reference.errors(P_act, O_act, t, window)
+    return reference.errors(P_act, O_act, t, window, window_length)

@@ -88,12 +88,24 @@ class ACTrunnion:
         A = np.arctan2(sin_a_abs, Ok)  # = arccos(Ok), but accurate near the pole
         A = np.where(flipped, -A, A)
 
-        Px, Py, Pz = np.moveaxis(P, -1, 0)
+        return np.concatenate([self.linear_axes(P, A, C), np.stack([A, C], axis=-1)], axis=-1)
+
+    def linear_axes(self, P: np.ndarray, A: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """X, Y, Z (mm, shape ``P.shape``) that put the tool tip at ``P`` when the rotary
+        axes stand at ``A``, ``C`` (spec section 1, the inverse kinematics' last three rows)."""
+        Px, Py, Pz = np.moveaxis(np.asarray(P, dtype=float), -1, 0)
         sA, cA, sC, cC = np.sin(A), np.cos(A), np.sin(C), np.cos(C)
         X = -cC * Px - sC * Py
         Y = cA * sC * Px - cA * cC * Py - sA * Pz - sA * self.L_ac
         Z = sA * sC * Px - sA * cC * Py + cA * Pz + cA * self.L_ac + self.L_ty
-        return np.stack([X, Y, Z, A, C], axis=-1)
+        return np.stack([X, Y, Z], axis=-1)
+
+    def orientation_jacobian(self, A: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """dO/d(A, C), shape ``A.shape + (3, 2)``; the C column vanishes at the pole A = 0."""
+        sA, cA, sC, cC = np.sin(A), np.cos(A), np.sin(C), np.cos(C)
+        d_a = np.stack([cA * sC, cA * cC, -sA], axis=-1)
+        d_c = np.stack([sA * cC, -sA * sC, np.zeros_like(sA)], axis=-1)
+        return np.stack([d_a, d_c], axis=-1)
 
 
 def _unwrap_path(c_raw: np.ndarray, defined: np.ndarray, period: float,
