@@ -127,10 +127,9 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
     n_samples = t.size
     n_segments = max(3, (n_samples - 1) // INITIAL_SAMPLES_PER_SEGMENT)
     knots = np.unique(np.round(np.linspace(0, n_samples - 1, n_segments + 1)).astype(np.intp))
-    sample = np.arange(n_samples)
     for rounds in range(1, max_rounds + 1):
         coef = _solve_min_jerk(t[knots], x[knots])
-        deviation = _evaluate_at_samples(coef, t, knots, sample) - x
+        deviation = _evaluate_at_samples(coef, t, knots) - x
         outside = np.abs(deviation) > tol
         if not outside.any():
             break
@@ -240,15 +239,20 @@ def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
     return coef
 
 
-def _evaluate_at_samples(coef: np.ndarray, t: np.ndarray, knots: np.ndarray,
-                         sample: np.ndarray) -> np.ndarray:
-    """Spline value at every sample, using that the knots are samples (no search needed)."""
-    segment = np.minimum(np.searchsorted(knots, sample, side="right") - 1, knots.size - 2)
-    start = t[knots[segment]]
-    tau = (t - start) / (t[knots[segment + 1]] - start)
-    monomial = coef @ _HERMITE_MONOMIAL.T                          # (n, 6), powers ascending
-    m = monomial[segment]
-    return ((((m[:, 5] * tau + m[:, 4]) * tau + m[:, 3]) * tau + m[:, 2]) * tau + m[:, 1]) * tau + m[:, 0]
+def _evaluate_at_samples(coef: np.ndarray, t: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """Spline value at every sample; the knots are samples, so each segment's samples are a
+    contiguous run and ``np.repeat`` replaces a search."""
+    counts = np.diff(knots)
+    counts[-1] += 1                                                # the last sample
+    start = np.repeat(t[knots[:-1]], counts)
+    length = np.repeat(np.diff(t[knots]), counts)
+    tau = (t - start) / length
+    monomial = (coef @ _HERMITE_MONOMIAL.T).T                      # (6, n), powers ascending
+    value = np.repeat(monomial[5], counts)
+    for power in range(4, -1, -1):
+        value *= tau
+        value += np.repeat(monomial[power], counts)
+    return value
 
 
 def _worst_of_each_stretch(abs_deviation: np.ndarray, outside: np.ndarray) -> np.ndarray:

@@ -79,6 +79,18 @@ class TrackingError:
     free: np.ndarray               # (n_seg + 1, n_states) complex: weight * residue * state
     offset: float                  # steady error of the resting axis (0 for a servo loop)
 
+    def __post_init__(self):
+        # Column-major copies for evaluation: one gather per coefficient is much faster than
+        # gathering whole rows of a (segments x coefficients) array for 10^6 query times.
+        real = self.poles.imag == 0
+        object.__setattr__(self, "_forced_columns", np.ascontiguousarray(self.forced.T))
+        object.__setattr__(self, "_real", (self.poles[real].real,
+                                           np.ascontiguousarray(self.free[:, real].real.T),
+                                           self.chain_power[real]))
+        object.__setattr__(self, "_complex", (self.poles[~real],
+                                              np.ascontiguousarray(self.free[:, ~real].T),
+                                              self.chain_power[~real]))
+
     def __call__(self, t) -> np.ndarray:
         t = np.asarray(t, dtype=float)
         flat = t.ravel()
@@ -86,31 +98,21 @@ class TrackingError:
                           self.breaks.size - 1)
         tau = flat - self.breaks[segment]
         before = tau < 0
-        tau = np.where(before, 0.0, tau)
-        coef = self.forced[segment]
-        value = coef[:, -1].copy()
-        for power in range(coef.shape[1] - 2, -1, -1):
-            value = value * tau + coef[:, power]
-        value += self._free_response(segment, tau)
-        value = np.where(before, 0.0, value) + self.offset
+        tau[before] = 0.0
+        columns = self._forced_columns
+        value = columns[-1][segment]
+        for power in range(columns.shape[0] - 2, -1, -1):
+            value *= tau
+            value += columns[power][segment]
+        for poles, amplitudes, powers in (self._real, self._complex):
+            for pole, amplitude, power in zip(poles, amplitudes, powers):
+                term = amplitude[segment] * np.exp(pole * tau)
+                if power:
+                    term *= tau ** power
+                value += term.real if np.iscomplexobj(term) else term
+        value[before] = 0.0
+        value += self.offset
         return value.reshape(t.shape)
-
-    def _free_response(self, segment: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Sum of the chains' free responses tau^p exp(l tau) amplitude (real result)."""
-        amplitude = self.free[segment]
-        out = np.zeros(tau.shape)
-        real = self.poles.imag == 0
-        if real.any():  # real arithmetic for real poles: the common case, and twice as fast
-            term = amplitude[:, real].real * np.exp(tau[:, None] * self.poles[real].real)
-            out += _times_tau_power(term, tau, self.chain_power[real]).sum(axis=1)
-        if (~real).any():
-            term = amplitude[:, ~real] * np.exp(tau[:, None] * self.poles[~real])
-            out += _times_tau_power(term, tau, self.chain_power[~real]).sum(axis=1).real
-        return out
-
-
-def _times_tau_power(term: np.ndarray, tau: np.ndarray, power: np.ndarray) -> np.ndarray:
-    return term * tau[:, None] ** power[None, :] if power.any() else term
 
 
 def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
