@@ -133,7 +133,7 @@ def closed_loop_bandwidth(model: LinearErrorModel) -> float:
     The first frequency above the resonance peak where |x/X| falls to 1/sqrt(2); the paper
     quotes 55.8 Hz (pid-high) and 38.6 Hz (pid-low) for the X axis.
     """
-    num = np.polysub(model.den, model.num)
+    num = np.trim_zeros(np.polysub(model.den, model.num), "f")
 
     def gain_minus_half_power(log_w):
         _, h = signal.freqs(num, model.den, [math.exp(log_w)])
