@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from .contour import ContourErrors
 from .drives import AXES, ROTARY_AXES
@@ -241,6 +242,9 @@ def plot_path(traj: "Trajectory", *, title: str = "", n_arrows: int = 40,
     for setter, m, s in zip((ax3.set_xlim, ax3.set_ylim, ax3.set_zlim), mid, span):
         setter(m - s / 2, m + s / 2)
     ax3.set_box_aspect(span)
+    for axis, extent in zip((ax3.xaxis, ax3.yaxis, ax3.zaxis), span):
+        # a short axis (a flat path) would otherwise crowd its tick labels
+        axis.set_major_locator(MaxNLocator(nbins=2 + int(5 * extent / span.max())))
     ax3.legend(loc="upper left", fontsize=8)
     ax3.set_title("tool path (workpiece frame)", fontsize=10)
     units = ["mm", "mm", "mm", "rad", "rad"]
