@@ -346,7 +346,7 @@ def test_bad_shapes_and_values():
 
 @pytest.mark.parametrize("mode", ["discrete", "continuous"])
 def test_unknown_controller_type(mode):
-    smc = Controller(name="smc-1", type="smc", axes=MACHINE.controller("pid-high").axes)
+    smc = Controller(name="fuzzy-1", type="fuzzy", axes=MACHINE.controller("pid-high").axes)
     with pytest.raises(UnsupportedControllerError,
-                       match=f"controller 'smc-1': no {mode}-time simulation for type 'smc'"):
+                       match=f"controller 'fuzzy-1': no {mode}-time simulation for type 'fuzzy'"):
         simulate(T_CMD, Q_CMD, MACHINE, smc, mode=mode)
