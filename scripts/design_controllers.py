@@ -5,7 +5,7 @@ Run ``python scripts/design_controllers.py``: prints the TOML tables shipped in
 
 Rules (see :func:`precontour.controllers.design_p_pi` and :func:`design_smc`):
 - ``p-pi-high`` / ``p-pi-low``: the paper's PID bandwidths, 55.8 Hz and 38.6 Hz (-3 dB of x/X);
-  velocity loop at 3x, PI zero at 1/4 of the velocity loop, kp tuned to the bandwidth;
+  velocity loop at 2x (what 1 kHz sampling allows), PI zero at 1/4 of the velocity loop, kp tuned to the bandwidth;
   no feed-forward (the paper compares plain P-PI, which lags).
 - ``smc``: feedback loop (estimates frozen) with a triple real pole, -3 dB bandwidth 80 Hz
   (1.43x pid-high); adaptation rates gamma_J = J * 1 s^2/rad^2, gamma_B = J * 10 s/rad^2.
