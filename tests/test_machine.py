@@ -13,7 +13,7 @@ def test_builtin_values_and_poles(machine):
     x = machine.drive("X")
     assert (x.ka, x.kt, x.rg, x.J, x.B) == (6.5723, 0.4769, 1.5915, 7.00e-3, 0.0236)
     assert x.friction.Ts_neg == -2.0692
-    assert set(machine.controllers) == {"pid-high", "pid-low"}
+    assert set(machine.controllers) == {"pid-high", "pid-low", "p-pi-high", "p-pi-low", "smc"}
     # spec section 2: closed-loop poles of X
     high = np.sort(machine.controller("pid-high").error_models(machine.drives)[0].poles.real)
     low = np.sort(machine.controller("pid-low").error_models(machine.drives)[0].poles.real)
@@ -76,7 +76,7 @@ def test_machine_file_errors(tmp_path, old, new, pattern):
 def test_unknown_machine_and_controller(machine):
     with pytest.raises(MachineFileError, match="not a built-in machine"):
         load_machine("no-such-machine")
-    with pytest.raises(MachineFileError, match=r"unknown controller 'pid-mid'.*pid-high, pid-low"):
+    with pytest.raises(MachineFileError, match=r"unknown controller 'pid-mid'.*pid-high, pid-low, p-pi-high, p-pi-low, smc"):
         machine.controller("pid-mid")
 
 

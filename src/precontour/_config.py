@@ -47,8 +47,8 @@ class ConfigTable:
         return default
 
     def get_float(self, key: str, default: Any = None, *, above: float | None = None,
-                  minval: float | None = None, nonzero: bool = False,
-                  required: bool = True) -> float | None:
+                  minval: float | None = None, maxval: float | None = None,
+                  nonzero: bool = False, required: bool = True) -> float | None:
         value = self._get(key, _REQUIRED if required and default is None else default)
         if value is None:
             return None
@@ -61,6 +61,8 @@ class ConfigTable:
             raise self.error(key, f"must be > {above:g}, got {value:g}")
         if minval is not None and value < minval:
             raise self.error(key, f"must be >= {minval:g}, got {value:g}")
+        if maxval is not None and value > maxval:
+            raise self.error(key, f"must be <= {maxval:g}, got {value:g}")
         if nonzero and value == 0.0:
             raise self.error(key, "must be nonzero")
         return value

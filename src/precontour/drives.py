@@ -140,12 +140,35 @@ class LinearErrorModel:
                 f"axis {self.axis or '?'}: closed loop is not stable (pole at {worst:.6g} rad/s)")
 
 
-def pid_error_model(drive: Drive, kp: float, ki: float, kd: float) -> LinearErrorModel:
+def pid_error_model(drive: Drive, kp: float, ki: float, kd: float, *, kvff: float = 0.0,
+                    kaff: float = 0.0) -> LinearErrorModel:
     """Error transfer function of a PID position loop around ``drive`` (spec section 2).
 
-    e(s)/X(s) = (J s^3 + B s^2) / (J s^3 + (B + K kd) s^2 + K kp s + K ki),  K = ka kt rg.
+    With the optional feed-forward u_ff = kvff (B/K) X' + kaff (J/K) X'' (fractions of the
+    nominal model's damping and inertia torques, see :class:`~precontour.controllers.PIDGains`):
+
+        e(s)/X(s) = (J (1 - kaff) s^3 + B (1 - kvff) s^2)
+                    / (J s^3 + (B + K kd) s^2 + K kp s + K ki),   K = ka kt rg.
     """
     K = drive.gain
     J, B = drive.J, drive.B
-    return LinearErrorModel(num=np.array([J, B, 0.0, 0.0]),
+    return LinearErrorModel(num=np.array([J * (1.0 - kaff), B * (1.0 - kvff), 0.0, 0.0]),
                             den=np.array([J, B + K * kd, K * kp, K * ki]), axis=drive.axis)
+
+
+def p_pi_error_model(drive: Drive, kp: float, kv: float, ki_v: float, *, kvff: float = 0.0,
+                     kaff: float = 0.0) -> LinearErrorModel:
+    """Error transfer function of a cascaded P position / PI velocity loop around ``drive``.
+
+    Velocity reference v_ref = kp e + kvff X', velocity error e_v = v_ref - x' (x' the measured
+    velocity), u = kv e_v + ki_v int(e_v) + kaff (J/K) X''. With J x'' + B x' = K u:
+
+        e(s)/X(s) = s (J (1 - kaff) s^2 + (B + K kv (1 - kvff)) s + K ki_v (1 - kvff))
+                    / (J s^3 + (B + K kv) s^2 + K (kv kp + ki_v) s + K ki_v kp).
+    """
+    K = drive.gain
+    J, B = drive.J, drive.B
+    r = 1.0 - kvff
+    return LinearErrorModel(num=np.array([J * (1.0 - kaff), B + K * kv * r, K * ki_v * r, 0.0]),
+                            den=np.array([J, B + K * kv, K * (kv * kp + ki_v), K * ki_v * kp]),
+                            axis=drive.axis)

@@ -12,7 +12,9 @@ reads the encoder at t_k (``q_act[k]`` = x(t_k)), computes u_k from e_k = q_cmd[
 holds u_k (and the friction feed-forward torque) over [t_k, t_k+1).
 
 Control laws are small pluggable classes chosen by ``controller.type``
-(:data:`DISCRETE_LAWS`, :data:`CONTINUOUS_LAWS`); an unknown type raises
+(:data:`~precontour.control_laws.DISCRETE_LAWS`,
+:data:`~precontour.control_laws.CONTINUOUS_LAWS`, defined in :mod:`precontour.control_laws`
+and re-exported here); an unknown type raises
 :class:`~precontour.errors.UnsupportedControllerError`.
 """
 
@@ -20,16 +22,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
+from .control_laws import CONTINUOUS_LAWS, DISCRETE_LAWS, ContinuousLaw, DiscreteLaw
 from .controllers import Controller
 from .drives import AXES, Drive
 from .errors import InputError, UnsupportedControllerError
 from .machine import Machine
 from .trajectory import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
+
+__all__ = ["CONTINUOUS_LAWS", "DISCRETE_LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES",
+           "ContinuousLaw", "DiscreteLaw", "SimulationResult", "StackedFriction", "simulate",
+           "simulate_trajectory"]
 
 MODES: tuple[str, ...] = ("discrete", "continuous")
 
@@ -102,98 +108,6 @@ class SimulationResult:
     def to_trajectory(self) -> Trajectory:
         """The actual motion as a :class:`~precontour.trajectory.Trajectory` (no reference)."""
         return Trajectory(t=self.t, q=self.q_act)
-
-
-# --------------------------------------------------------------------------------------------
-# Control laws (vectorized over the five axes)
-# --------------------------------------------------------------------------------------------
-
-class DiscreteLaw(Protocol):
-    """A control law run once per servo period, vectorized over the five axes."""
-
-    def reset(self, q_cmd: np.ndarray) -> None:
-        """Zero the internal state; ``q_cmd`` (N, 5) is the whole command, for feed-forward."""
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Controller output u_k (V, shape (5,)) from e_k = q_cmd[k] - y_k and the reading y_k."""
-
-
-class ContinuousLaw(Protocol):
-    """A continuous-time control law with internal state ``s`` of shape (n_states, 5)."""
-
-    n_states: int
-
-    def output(self, s: np.ndarray, e: np.ndarray, edot: np.ndarray,
-               v: np.ndarray) -> np.ndarray:
-        """u (V) from state, error e, error rate edot and actual axis velocity v."""
-
-    def derivative(self, s: np.ndarray, e: np.ndarray, edot: np.ndarray,
-                   v: np.ndarray) -> np.ndarray:
-        """ds/dt, shape (n_states, 5)."""
-
-
-def _pid_gains(controller: Controller) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    kp = np.array([g.kp for g in controller.axes], dtype=float)
-    ki = np.array([g.ki for g in controller.axes], dtype=float)
-    kd = np.array([g.kd for g in controller.axes], dtype=float)
-    return kp, ki, kd
-
-
-class DiscretePID:
-    """Discrete PID: u_k = kp e_k + ki I_k + kd (e_k - e_{k-1}) / Ts, I_k = I_{k-1} + Ts e_k.
-
-    Rectangle-rule integral that includes the current sample, backward-difference derivative;
-    the state (I, e_{k-1}) starts at zero, matching a drive at rest at its first command.
-    """
-
-    def __init__(self, kp: np.ndarray, ki: np.ndarray, kd: np.ndarray, ts: float):
-        self.kp, self.ki, self.kd, self.ts = kp, ki, kd, ts
-        self._kd_ts = kd / ts
-        self.reset(None)
-
-    @classmethod
-    def from_controller(cls, controller: Controller, ts: float) -> "DiscretePID":
-        return cls(*_pid_gains(controller), ts)
-
-    def reset(self, q_cmd: np.ndarray | None) -> None:
-        self._integral = np.zeros(_N_AXES)
-        self._e_prev = np.zeros(_N_AXES)
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        self._integral += self.ts * e
-        u = self.kp * e + self.ki * self._integral + self._kd_ts * (e - self._e_prev)
-        self._e_prev = e
-        return u
-
-
-class ContinuousPID:
-    """Continuous PID u = kp e + ki z + kd e', z' = e (the linear model of spec section 2)."""
-
-    n_states = 1
-
-    def __init__(self, kp: np.ndarray, ki: np.ndarray, kd: np.ndarray):
-        self.kp, self.ki, self.kd = kp, ki, kd
-
-    @classmethod
-    def from_controller(cls, controller: Controller) -> "ContinuousPID":
-        return cls(*_pid_gains(controller))
-
-    def output(self, s, e, edot, v):
-        return self.kp * e + self.ki * s[0] + self.kd * edot
-
-    def derivative(self, s, e, edot, v):
-        return e[np.newaxis]
-
-
-#: Discrete control-law factories by controller type: ``factory(controller, ts) -> law``.
-DISCRETE_LAWS: dict[str, Callable[[Controller, float], DiscreteLaw]] = {
-    "pid": DiscretePID.from_controller,
-}
-
-#: Continuous control-law factories by controller type: ``factory(controller) -> law``.
-CONTINUOUS_LAWS: dict[str, Callable[[Controller], ContinuousLaw]] = {
-    "pid": ContinuousPID.from_controller,
-}
 
 
 # --------------------------------------------------------------------------------------------
@@ -343,7 +257,9 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
     mode : {"discrete", "continuous"}
         ``discrete``: the control law runs at the sampling period with a zero-order hold on u
         (the realistic machine). ``continuous``: the continuous-time control law, driven by a
-        quintic interpolating spline of the samples; without friction this is the linear model
+        quintic interpolating spline of the samples (its first two derivatives feed the
+        velocity and acceleration terms of the laws); without friction this is the linear
+        model of the controller (``controller.error_models``), e.g. for PID
         x/X = K (kd s^2 + kp s + ki) / (J s^3 + (B + K kd) s^2 + K kp s + K ki).
     friction : bool
         Apply the Stribeck friction torque Tf(w) of each drive to the plant.
@@ -418,7 +334,7 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
             raise UnsupportedControllerError(
                 f"controller {controller.name!r}: no discrete-time simulation for type "
                 f"{controller.type!r} (supported: {', '.join(DISCRETE_LAWS)})")
-        law = factory(controller, ts)
+        law = factory(controller, ts, machine.drives)
         q_act, w, u = _run_discrete(q, ts, plant, law, nominal_friction if friction else None,
                                     nominal_friction if ff_friction else None, resolution,
                                     substeps)
@@ -428,7 +344,7 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
             raise UnsupportedControllerError(
                 f"controller {controller.name!r}: no continuous-time simulation for type "
                 f"{controller.type!r} (supported: {', '.join(CONTINUOUS_LAWS)})")
-        law = factory(controller)
+        law = factory(controller, machine.drives)
         q_act, w, u = _run_continuous(t, q, plant, law, nominal_friction if friction else None,
                                       nominal_friction if ff_friction else None, substeps)
     return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
@@ -626,6 +542,7 @@ def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFr
     n = q.shape[0]
     spline = make_interp_spline(t, q, k=5)
     dspline = spline.derivative()
+    ddspline = dspline.derivative()
     # Command and its rate at every RK4 stage time: t_k + j h / 2, j = 0 .. 2 m (n - 1).
     m = substeps
     h = (t[-1] - t[0]) / (n - 1) / m
@@ -634,6 +551,7 @@ def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFr
     t_stage[:: 2 * m] = t
     X = spline(t_stage)
     Xd = dspline(t_stage)
+    Xdd = ddspline(t_stage)
     tff = np.zeros_like(X) if ff is None else ff.many(_deadband(Xd / plant.rg))
     J, B, rg, kakt = plant.J, plant.B, plant.rg, plant.kakt
     zero = np.zeros(_N_AXES)
@@ -642,7 +560,7 @@ def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFr
         v = rg * w
         e = X[i] - x
         edot = Xd[i] - v
-        u = law.output(s, e, edot, v)
+        u = law.output(s, e, edot, v, Xdd[i])
         tau = kakt * u + tff[i]
         torque = tau - B * w
         if fb is not None:
@@ -650,7 +568,7 @@ def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFr
         wdot = torque / J
         if free is not None:
             wdot = wdot * free
-        return v, wdot, law.derivative(s, e, edot, v), u, tau
+        return v, wdot, law.derivative(s, e, edot, v, Xdd[i]), u, tau
 
     q_act = np.empty_like(q)
     w_out = np.empty_like(q)
