@@ -10,6 +10,7 @@ itself cannot capture the wrong branch. Everything is vectorized over samples.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
@@ -23,13 +24,14 @@ from .trajectory import Trajectory
 #: the actual machine can lag far behind in time while being close in space.
 DEFAULT_WINDOW = 0.05
 DEFAULT_WINDOW_LENGTH = 2.0
+MAX_WINDOW_FACTOR = 20
 ORIENTATION_LENGTH = 100.0
 NEWTON_ITERATIONS = 60
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
 #: Newton's method starts from the nearest reference sample in the window, found by scanning
 #: the window's samples with a stride that keeps at most about this many per side.
-SEED_SAMPLES_PER_SIDE = 25
+SEED_SAMPLES_PER_SIDE = 50
 
 
 @dataclass(frozen=True)
@@ -138,7 +140,7 @@ class ReferencePath:
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
 
-    @property
+    @cached_property
     def progress(self) -> np.ndarray:
         """Path progress at each reference sample: tip arc length plus ORIENTATION_LENGTH mm
         per rad of orientation change (monotone), mm."""
@@ -157,27 +159,43 @@ class ReferencePath:
                         np.searchsorted(progress, progress[base] - window_length, side="left"))
         hi = np.maximum(np.minimum(base + reach, n - 1),
                         np.searchsorted(progress, progress[base] + window_length, side="right") - 1)
-        return base, lo, hi
+        # On a long slow stretch the path-progress window would cover thousands of samples;
+        # MAX_WINDOW_FACTOR time windows either side is more than any lag and keeps the
+        # search linear in the number of samples.
+        longest = MAX_WINDOW_FACTOR * max(reach, 1)
+        return base, np.maximum(lo, base - longest), np.minimum(hi, base + longest)
 
     def _search(self, start, window, window_length, gradient_and_curvature, distance,
                 sample_distance):
-        """Seed on the reference samples inside the window, refine by safeguarded Newton,
-        and keep the best of the refined point and the window ends."""
+        """Closest parameter in each window: scan the reference samples for the nearest
+        (``sample_distance(k, i)``: distance of actual point i to reference sample k), refine
+        by Newton's method, and keep the refined point unless the sample itself is nearer."""
         start = self.t if start is None else np.asarray(start, dtype=float)
         base, lo, hi = self._window(start, window, window_length)
         best_k = base.copy()
         best = sample_distance(base, slice(None))
         reach = int(round(window * (self.t.size - 1) / (self.t[-1] - self.t[0])))
         stride = max(1, reach // SEED_SAMPLES_PER_SIDE)
-        for offset in range(int((lo - base).min()), int((hi - base).max()) + 1, stride):
-            if offset == 0:
-                continue
-            k = base + offset
-            inside = np.flatnonzero((k >= lo) & (k <= hi))  # windows stretch only near stops
-            d = sample_distance_at(sample_distance, k, inside)
-            better = d < best[inside]
-            best[inside[better]] = d[better]
-            best_k[inside[better]] = k[inside[better]]
+        # Every window spans the time window; windows stretched along slow stretches and
+        # stops reach further, and only those samples are scanned there.
+        everyone = np.arange(base.size)
+        stretched = np.flatnonzero((lo < base - reach) | (hi > base + reach))
+        scans = [(everyone, range(-reach, reach + 1, stride))]
+        if stretched.size:
+            scans.append((stretched, [o for o in range(int((lo - base)[stretched].min()),
+                                                       int((hi - base)[stretched].max()) + 1,
+                                                       stride) if abs(o) > reach]))
+        for who, offsets in scans:
+            for offset in offsets:
+                if offset == 0:
+                    continue
+                k = base[who] + offset
+                inside = (k >= lo[who]) & (k <= hi[who])
+                i = who[inside]
+                d = sample_distance(k[inside], i)
+                better = d < best[i]
+                best[i[better]] = d[better]
+                best_k[i[better]] = k[inside][better]
         # The minimum lies within one sample of the best sample: bracket it there and refine
         # by Newton's method safeguarded with bisection on the sign of the gradient.
         a = self.t[np.maximum(best_k - 1, lo)]
@@ -206,11 +224,6 @@ class ReferencePath:
         candidates = [u, self.t[best_k]]
         values = np.stack([distance(c) for c in candidates])
         return np.choose(np.argmin(values, axis=0), candidates)
-
-
-def sample_distance_at(sample_distance, k: np.ndarray, inside: np.ndarray) -> np.ndarray:
-    """Distances from the actual points ``inside`` to reference samples ``k[inside]``."""
-    return sample_distance(k[inside], inside)
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
