@@ -134,7 +134,8 @@ class Claim:
         ``"a"`` ... with the controller, e.g. ``"a:p-pi-high"``.
     question : str
     verdict : str
-        ``"holds"``, ``"partly holds"`` or ``"does not hold"``.
+        ``"holds"``, ``"partly holds"``, ``"does not hold"`` or ``"not measurable"`` (nothing
+        to compare, e.g. all signals zero).
     lines : tuple of str
         The numbers behind the verdict, one per line.
     """
@@ -306,7 +307,8 @@ def peak_rows(result: CompareResult) -> list[dict]:
 
 
 def _ratio(a: float, b: float) -> float:
-    return a / b if b > 0 else float("inf") if a > 0 else 1.0
+    """a / b; inf if only b is zero, nan if both are."""
+    return a / b if b > 0 else float("inf") if a > 0 else float("nan")
 
 
 def _share(part: float, whole: float) -> float:
@@ -323,6 +325,8 @@ def _change(new: float, old: float) -> float:
 # --------------------------------------------------------------------------------------------
 
 def _verdict(wins: Sequence[bool]) -> str:
+    if not wins:
+        return "not measurable"
     return "holds" if all(wins) else "does not hold" if not any(wins) else "partly holds"
 
 
@@ -378,6 +382,10 @@ def make_claims(result: CompareResult) -> tuple[Claim, ...]:
         lines, wins = [], []
         for sig in SPECTRUM_SIGNALS:
             r = rows[(name, sig, SPECTRUM_CUTOFF_HZ)]
+            if r["tracking_power"] == r["contour_power"] == 0.0:
+                lines.append(f"{sig}: both compensation signals are zero above "
+                             f"{SPECTRUM_CUTOFF_HZ:g} Hz (left out of the verdict)")
+                continue
             wins.append(r["contour_power"] < r["tracking_power"])
             lines.append(f"{sig}: power above {SPECTRUM_CUTOFF_HZ:g} Hz: tracking "
                          f"{_g(r['tracking_power'])} {r['unit']} "
@@ -398,11 +406,13 @@ def make_claims(result: CompareResult) -> tuple[Claim, ...]:
         for quantity, _, _ in DERIVATIVES:
             cells = [r for r in result.peak_rows if r["controller"] == name
                      and r["compensation"] == "contour" and r["quantity"] == quantity]
-            wins += [abs(r["change_pct"]) <= NEARLY_UNCHANGED_PCT for r in cells]
+            # nan (zero peak before and after) counts as unchanged, inf (from zero) does not
+            wins += [not abs(r["change_pct"]) > NEARLY_UNCHANGED_PCT for r in cells]
             lines.append(f"peak {quantity} change: " + ", ".join(
                 f"{r['axis']} {r['change_pct']:+.1f} %" for r in cells))
         worst = max((r for r in result.peak_rows if r["controller"] == name
-                     and r["compensation"] == "contour"), key=lambda r: abs(r["change_pct"]))
+                     and r["compensation"] == "contour"),
+                    key=lambda r: -1.0 if np.isnan(r["change_pct"]) else abs(r["change_pct"]))
         lines.append(f"largest: {worst['quantity']} of {worst['axis']}, "
                      f"{_g(worst['reference'])} -> {_g(worst['compensated'])} "
                      f"{worst['unit']} ({worst['change_pct']:+.1f} %)")

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from .compare import (COMPENSATIONS, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
+from .compare import (COMPENSATIONS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
                       SPECTRUM_CUTOFF_HZ, SPECTRUM_SIGNALS, WELCH_SEGMENT, Spectrum,
                       command_derivatives)
 from .contour import ContourErrors
@@ -143,14 +143,18 @@ def plot_spectra(spectrum: Spectrum, *, cutoff_hz: float = SPECTRUM_CUTOFF_HZ,
             psd = spectrum.psd(kind, sig)
             top = max(top, psd.max())
             ax.plot(f, psd[shown], color=COLORS[kind], lw=1.2, label=LABELS[kind])
-        ax.set_yscale("log")
-        ax.set_ylim(1e-9 * top, 5.0 * top)
         ax.axvspan(cutoff_hz, f_max, color="0.9", zorder=0)
         power = {k: spectrum.band_power(k, sig, cutoff_hz) for k in ("tracking", "contour")}
-        ratio = power["contour"] / power["tracking"] if power["tracking"] > 0 else np.inf
-        ax.text(0.98, 0.97, f"power above {cutoff_hz:g} Hz ({unit}$^2$):\n"
-                f"tracking {power['tracking']:.3g}\ncontour {power['contour']:.3g}\n"
-                f"ratio {ratio:.3g}", transform=ax.transAxes, ha="right", va="top",
+        if top > np.finfo(float).tiny:
+            ax.set_yscale("log")
+            # nine decades: below that the PSDs are rounding noise
+            ax.set_ylim(1e-9 * top, 5.0 * top)
+            ratio = _g(power["contour"] / power["tracking"]) if power["tracking"] > 0 else "-"
+            text = (f"power above {cutoff_hz:g} Hz ({unit}$^2$):\ntracking "
+                    f"{_g(power['tracking'])}\ncontour {_g(power['contour'])}\nratio {ratio}")
+        else:
+            text = "both compensation signals are zero"
+        ax.text(0.98, 0.97, text, transform=ax.transAxes, ha="right", va="top",
                 fontsize=8, bbox=dict(facecolor="white", alpha=0.85, edgecolor="none", pad=1.5))
         name = "X, Y, Z together" if sig == "XYZ" else sig
         ax.set_title(name, fontsize=9)
