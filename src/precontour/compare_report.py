@@ -22,7 +22,7 @@ from .compare import (COMPENSATIONS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, 
                       command_derivatives)
 from .contour import ContourErrors
 from .drives import AXES, ROTARY_AXES
-from .report import MACHINE_LABELS, _axis_scale, _data_uri, _figure, _write, figure_png
+from .report import _axis_scale, _data_uri, _figure, _write, figure_png
 
 if TYPE_CHECKING:  # pragma: no cover
     from .compare import CompareResult
@@ -49,7 +49,7 @@ CLAIM_COLUMNS: tuple[str, ...] = ("key", "verdict", "question", "numbers")
 # --------------------------------------------------------------------------------------------
 
 def plot_contour_comparison(t: np.ndarray, curves: Sequence[tuple[str, ContourErrors, str]], *,
-                            title: str = "") -> Figure:
+                            linear_skip: Sequence[str] = (), title: str = "") -> Figure:
     """Figs. 11, 12, 15 of the paper: tool tip (um) and orientation (mrad) contour errors over
     time of several runs, on a linear scale (left) and a log scale (right, four decades below
     the largest peak), the legend giving each run's max and mean.
@@ -59,6 +59,8 @@ def plot_contour_comparison(t: np.ndarray, curves: Sequence[tuple[str, ContourEr
     t : ndarray, shape (N,)
         Time, s.
     curves : sequence of (label, ContourErrors, colour)
+    linear_skip : sequence of str
+        Labels of curves drawn on the log scale only (ones that would squash the others).
     """
     fig = _figure(12.5, 7.6)
     grid = fig.subplots(2, 2, sharex=True)
@@ -68,14 +70,17 @@ def plot_contour_comparison(t: np.ndarray, curves: Sequence[tuple[str, ContourEr
         for label, errors, color in curves:
             values = 1e3 * getattr(errors, attr)
             top = max(top, values.max())
-            left.plot(t, values, color=color, lw=1.0)
+            if label not in linear_skip:
+                left.plot(t, values, color=color, lw=1.0)
             right.plot(t, values, color=color, lw=1.0,
                        label=f"{label}: max {values.max():.3g}, mean {values.mean():.3g} {unit}")
         for ax in (left, right):
             ax.set_ylabel(f"{name} contour error ({unit})")
             ax.grid(alpha=0.3)
         left.set_ylim(bottom=0.0)
-        left.set_title(f"{name}, linear scale", fontsize=9)
+        left.set_title(f"{name}, linear scale"
+                       + (f" (without {', '.join(linear_skip)})" if linear_skip else ""),
+                       fontsize=9)
         right.set_yscale("log")
         # two decades of headroom keep the legend off the curves
         right.set_ylim(1e-4 * top, 100.0 * top)
@@ -320,7 +325,7 @@ def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
         out.append((f"fig12:{name}", f"{name}: contour errors with tracking-error vs "
                     "contour-error pre-compensation (like the paper's Fig. 12).",
                     figure_png(plot_contour_comparison(
-                        t, contour_curves(name, COMPENSATIONS),
+                        t, contour_curves(name, COMPENSATIONS), linear_skip=(LABELS["none"],),
                         title=f"contour errors, {where}, {name}"))))
         out.append((f"fig13:{name}", f"{name}: spectra of the two compensation signals "
                     f"q_comp - q_ref (Welch, Hann, {WELCH_SEGMENT}-sample segments); shaded: "
@@ -354,8 +359,12 @@ def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
 def _setup_lines(result: "CompareResult") -> list[str]:
     s = result.summary
     return [
-        f"Machine {result.machine.name}, {MACHINE_LABELS['realistic']} "
-        f"(simulate options {MACHINE_OPTIONS}).",
+        f"Machine {result.machine.name}, realistic virtual machine: each control law runs "
+        "discretely at the servo period with zero-order hold, Stribeck friction in the "
+        f"drives, feed-forward friction compensation (simulate options {MACHINE_OPTIONS}).",
+        "Controllers: sliding mode " + (result.sliding or "(not run)") + "; P-PI "
+        + (result.ppi or "(not run)") + "; PID " + (", ".join(result.pids) or "(not run)")
+        + ".",
         f"Trajectory: {result.source}, {s.duration:.3f} s, {s.n_samples} samples at "
         f"{s.ts * 1e3:g} ms, peak feed {s.peak_feed:.1f} mm/s.",
         "Compensations: none; axis tracking-error pre-compensation (the paper's single pass: "
