@@ -136,9 +136,11 @@ def test_only_the_report_module_loads_matplotlib():
 
     code = ("import sys, pkgutil, importlib, precontour\n"
             "names = [m.name for m in pkgutil.walk_packages(precontour.__path__, 'precontour.')\n"
-            "         if m.name not in ('precontour.report', 'precontour.__main__')]\n"
+            "         if m.name not in ('precontour.report', 'precontour.compare_report',\n"
+            "                           'precontour.__main__')]\n"
             "for name in names: importlib.import_module(name)\n"
             "assert 'precontour.demo' in names and 'precontour.cli' in names, names\n"
+            "assert 'precontour.compare' in names, names\n"
             "print('matplotlib' in sys.modules)\n"
             "import precontour.report\n"
             "print('matplotlib' in sys.modules)\n")

@@ -70,7 +70,7 @@ def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
 def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
                method: str = "contour", iterations: int = 1, tol_linear: float | None = None,
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
-               progress=None) -> CompensationResult:
+               progress=None, min_passes: int = 0) -> CompensationResult:
     """Pre-compensate the axis commands of ``traj`` (which must carry its reference P, O).
 
     Parameters
@@ -94,12 +94,17 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         Reuse already built reference curves.
     progress : callable, optional
         Called as ``progress(pass_index, summary_dict)`` after each pass.
+    min_passes : int
+        Passes kept even when they do not improve the prediction (0 to ``iterations``); 1
+        applies the paper's single pass unconditionally, as a comparison of methods needs.
     """
     if method not in METHODS:
         raise ValueError(f"unknown compensation method {method!r}; choose one of "
                          f"{', '.join(METHODS)}")
     if iterations < 1:
         raise ValueError(f"iterations must be >= 1, got {iterations}")
+    if not 0 <= min_passes <= iterations:
+        raise ValueError(f"min_passes must be within 0..{iterations}, got {min_passes}")
     reference = reference or ReferencePath.from_trajectory(traj)
     t = traj.t
 
@@ -126,7 +131,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         history.append(after.summary())
         if progress is not None:
             progress(n, after.summary())
-        if _score(after) < best[0]:
+        if n <= min_passes or _score(after) < best[0]:
             best = (_score(after), q_cmd, after, n)
         else:
             break
