@@ -2,12 +2,13 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from precontour.errors import InputError
 from precontour.kinematics import ACTrunnion, normalize_orientations
+from precontour.kinematics.ac_trunnion import POLE_TOLERANCE
 
 KIN = ACTrunnion(L_ac=100.0, L_ty=300.0)
 KIN_POSITIVE_A = ACTrunnion(L_ac=100.0, L_ty=300.0, a_min=0.0, a_max=2.0)
@@ -29,6 +30,7 @@ def test_axes_to_tool_and_back(q):
 
 
 @settings(max_examples=300, deadline=None)
+@example(P=(0.0, 0.0, 0.0), O=(0.0, -1.9e-13, 0.25))   # just off the pole (found by hypothesis)
 @given(st.tuples(st.floats(-300, 300, **finite), st.floats(-300, 300, **finite),
                  st.floats(-300, 300, **finite)),
        st.tuples(st.floats(-1, 1, **finite), st.floats(-1, 1, **finite),
@@ -40,7 +42,9 @@ def test_tool_to_axes_and_back(P, O):
         q = kin.inverse(P, O)
         P2, O2 = kin.forward(q)
         np.testing.assert_allclose(P2, P, atol=1e-9, rtol=0)
-        np.testing.assert_allclose(O2, O, atol=1e-12, rtol=0)
+        # within POLE_TOLERANCE of the pole C is undefined and taken from its neighbours (here
+        # 0): the orientation is then reproduced to 2 POLE_TOLERANCE, elsewhere to round-off
+        np.testing.assert_allclose(O2, O, atol=2 * POLE_TOLERANCE + 1e-15, rtol=0)
 
 
 def test_inverse_matches_spec_formulas_on_a_known_point():

@@ -176,8 +176,10 @@ LEAD_TIME = 0.005
 
 
 def _lead_blend(closest: np.ndarray, reference_now: np.ndarray, lead: np.ndarray) -> np.ndarray:
-    """closest + beta (reference_now - closest), beta = clip(lead / LEAD_TIME, 0, 1)."""
-    beta = np.clip(lead / LEAD_TIME, 0.0, 1.0)
+    """closest + beta (reference_now - closest), beta = smoothstep(lead / LEAD_TIME): 0 for no
+    lead, 1 from LEAD_TIME on, with a continuous slope so the correction has no kink."""
+    x = np.clip(lead / LEAD_TIME, 0.0, 1.0)
+    beta = x * x * (3.0 - 2.0 * x)
     return closest + beta[:, None] * (reference_now - closest)
 
 
