@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d, uniform_filter1d
 
 from .contour import ContourErrors, ReferencePath
 from .drives import LinearErrorModel
@@ -148,7 +149,7 @@ def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):
     # Steps 1-2: orientation through the spherical parallelogram O1, O*, O_cmd, O_comp.
     _, O1 = kinematics.forward(q_act)
     w = reference.closest_orientation(O1, traj.t)
-    O_star = _unit(_lead_blend(_unit(reference.orientation(w)), traj.O, w - traj.t))
+    O_star = _unit(_lead_blend(_unit(reference.orientation(w)), traj.O, w - traj.t, traj.ts))
     O_centre = _unit(O_cmd + O_star)
     O_comp = _unit(2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1)
     rotary = _rotary_towards(kinematics, q_cmd[:, 3], q_cmd[:, 4], O_comp)
@@ -157,7 +158,7 @@ def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):
     P3, _ = kinematics.forward(predict(q2))
     # Step 4: add the predicted tip contour error vector to the commanded tip.
     u = reference.closest_tip(P3, traj.t)
-    P_star = _lead_blend(reference.tip(u), traj.P, u - traj.t)
+    P_star = _lead_blend(reference.tip(u), traj.P, u - traj.t, traj.ts)
     P_comp = P_cmd + (P_star - P3)
     # Step 5: back to axis commands.
     return np.concatenate([kinematics.linear_axes(P_comp, *rotary.T), rotary], axis=1)
@@ -173,13 +174,23 @@ def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):
 #: reduction of the largest tip / orientation errors at stops and reversals from 62-75 % to
 #: 97-99 % and changes the others by less than 0.5 %.
 LEAD_TIME = 0.005
+BLEND_SPREAD = 0.02
 
 
-def _lead_blend(closest: np.ndarray, reference_now: np.ndarray, lead: np.ndarray) -> np.ndarray:
+def _lead_blend(closest: np.ndarray, reference_now: np.ndarray, lead: np.ndarray,
+                ts: float) -> np.ndarray:
     """closest + beta (reference_now - closest), beta = smoothstep(lead / LEAD_TIME): 0 for no
-    lead, 1 from LEAD_TIME on, with a continuous slope so the correction has no kink."""
+    lead, 1 from LEAD_TIME on, with a continuous slope so the correction has no kink.
+
+    Where the path retraces itself the closest point can jump to the returning branch; beta
+    is therefore spread over time (a running maximum, then a running mean, each BLEND_SPREAD
+    either side) so that it has reached 1 wherever the closest point jumps, and the blended
+    target stays continuous and changes no faster than over 2 BLEND_SPREAD.
+    """
     x = np.clip(lead / LEAD_TIME, 0.0, 1.0)
     beta = x * x * (3.0 - 2.0 * x)
+    width = 2 * max(1, int(round(BLEND_SPREAD / ts))) + 1
+    beta = uniform_filter1d(maximum_filter1d(beta, width, mode="nearest"), width, mode="nearest")
     return closest + beta[:, None] * (reference_now - closest)
 
 
