@@ -22,7 +22,7 @@ from scipy import signal
 from .builtin_paths import BUILTIN_PATHS, builtin_path
 from .compensation import CompensationResult, compensate
 from .contour import ContourErrors, ReferencePath, contour_errors
-from .demo import MACHINE_MODELS, Progress
+from .demo import MACHINE_MODELS, Progress, StepCounter
 from .drives import AXES, ROTARY_AXES
 from .errors import InputError
 from .machine import Machine, load_machine
@@ -491,13 +491,7 @@ def run_compare(out_dir: str | Path, *, builtin: str | None = None,
 
     linear = ((ppi,) if ppi else ()) + pids
     total = (1 if sliding else 0) + 5 * len(linear) + 1
-    done = 0
-
-    def step(message: str) -> None:
-        nonlocal done
-        if progress is not None:
-            progress(done, total, message)
-        done += 1
+    step = StepCounter(progress, total)
 
     reference = ReferencePath.from_trajectory(traj)
 
@@ -537,7 +531,7 @@ def run_compare(out_dir: str | Path, *, builtin: str | None = None,
     end = time.perf_counter()
     result.timings.update(report=end - computed, total=end - start)
     if progress is not None:
-        progress(done, total, f"done in {result.timings['total']:.1f} s")
+        progress(step.done, total, f"done in {result.timings['total']:.1f} s")
     return replace(result, files=tuple(files))
 
 

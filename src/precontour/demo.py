@@ -44,6 +44,20 @@ TRAJECTORY_KINDS: tuple[str, ...] = ("uncompensated", "pre-compensated")
 Progress = Callable[[int, int, str], None]
 
 
+class StepCounter:
+    """``step(message)`` reports the next of ``total`` steps to ``progress`` (if any)."""
+
+    def __init__(self, progress: Progress | None, total: int):
+        self.progress = progress
+        self.total = total
+        self.done = 0
+
+    def __call__(self, message: str) -> None:
+        if self.progress is not None:
+            self.progress(self.done, self.total, message)
+        self.done += 1
+
+
 @dataclass(frozen=True)
 class MachineRun:
     """One command run on one virtual machine: the simulated motion and its contour errors
@@ -221,13 +235,7 @@ def run_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
 
     runs_per_case = len(MACHINE_MODELS) * len(TRAJECTORY_KINDS)
     total = len(paths) * (1 + len(controllers) * (1 + runs_per_case)) + 1
-    done = 0
-
-    def step(message: str) -> None:
-        nonlocal done
-        if progress is not None:
-            progress(done, total, message)
-        done += 1
+    step = StepCounter(progress, total)
 
     start = time.perf_counter()
     summaries, cases = {}, []
@@ -265,7 +273,7 @@ def run_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     end = time.perf_counter()
     timings.update(report=end - computed, total=end - start)
     if progress is not None:
-        progress(done, total, f"done in {timings['total']:.1f} s")
+        progress(step.done, total, f"done in {timings['total']:.1f} s")
     return replace(result, rows=rows, files=tuple(files))
 
 
