@@ -8,7 +8,6 @@ from precontour.builtin_paths import builtin_path
 from precontour.errors import PrecontourError
 from precontour.feedplan import _acceleration_passes, axis_limits, plan_feed
 from precontour.pathspline import fit_path, fit_toolpath
-from precontour.toolpath import ToolPath
 
 TS = 0.001
 RTOL = 1e-9

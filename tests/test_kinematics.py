@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
 
 from precontour.errors import InputError
 from precontour.kinematics import ACTrunnion, normalize_orientations

@@ -315,7 +315,7 @@ def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
         curves = ([(f"sliding mode ({result.sliding})", result.run(result.sliding).contour,
                     COLORS["sliding"]),
                    (f"P-PI ({result.ppi})", result.run(result.ppi).contour, COLORS["none"]),
-                   (f"P-PI + contour pre-comp.", result.run(result.ppi, "contour").contour,
+                   ("P-PI + contour pre-comp.", result.run(result.ppi, "contour").contour,
                     COLORS["contour"])])
         out.append(("fig11", "Contour errors: sliding mode vs P-PI vs P-PI with contour "
                     "pre-compensation (like the paper's Fig. 11).",
