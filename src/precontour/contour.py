@@ -14,6 +14,7 @@ from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
+from scipy.spatial import cKDTree
 
 from .errors import InputError
 from .trajectory import Trajectory
@@ -27,11 +28,14 @@ DEFAULT_WINDOW_LENGTH = 2.0
 MAX_WINDOW_FACTOR = 20
 ORIENTATION_LENGTH = 100.0
 NEWTON_ITERATIONS = 60
+#: Newton's method stops for a sample when its parameter step is below this (s): 1 ns is
+#: 0.1 nm of path at 100 mm/s.
+PARAMETER_TOLERANCE = 1e-9
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
-#: Newton's method starts from the nearest reference sample in the window, found by scanning
-#: the window's samples with a stride that keeps at most about this many per side.
-SEED_SAMPLES_PER_SIDE = 50
+#: Newton's method starts from the nearest reference sample in the window, found among this
+#: many nearest reference samples (k-d tree), or by scanning the window where none is in it.
+NEIGHBOURS = 16
 
 
 @dataclass(frozen=True)
@@ -101,8 +105,8 @@ class ReferencePath:
         P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``."""
         curve, d1, d2 = self.tip, self.tip.derivative(), self.tip.derivative(2)
 
-        def gradient_and_curvature(u):
-            r = curve(u) - P_act
+        def gradient_and_curvature(u, i):
+            r = curve(u) - P_act[i]
             v = d1(u)
             return (np.einsum("ij,ij->i", v, r),
                     np.einsum("ij,ij->i", d2(u), r) + np.einsum("ij,ij->i", v, v))
@@ -110,7 +114,8 @@ class ReferencePath:
         def distance(u):
             return np.linalg.norm(curve(u) - P_act, axis=1)
         return self._search(u0, window, window_length, gradient_and_curvature, distance,
-                            lambda k, i: np.linalg.norm(self.P[k] - P_act[i], axis=1))
+                            lambda k, i: np.linalg.norm(self.P[k] - P_act[i], axis=1),
+                            self._tip_tree, P_act)
 
     def closest_orientation(self, O_act: np.ndarray, w0: np.ndarray | None = None,
                             window: float = DEFAULT_WINDOW,
@@ -120,12 +125,14 @@ class ReferencePath:
         curve, d1, d2 = (self.orientation, self.orientation.derivative(),
                          self.orientation.derivative(2))
 
-        def gradient_and_curvature(w):
+        def gradient_and_curvature(w, i):
             # minimize -O(w) . O_act; |O(w)| = 1 up to the interpolation's round-off
-            return (-np.einsum("ij,ij->i", d1(w), O_act), -np.einsum("ij,ij->i", d2(w), O_act))
+            return (-np.einsum("ij,ij->i", d1(w), O_act[i]),
+                    -np.einsum("ij,ij->i", d2(w), O_act[i]))
         return self._search(w0, window, window_length, gradient_and_curvature,
                             lambda w: _angle(curve(w), O_act),
-                            lambda k, i: _angle(self.O[k], O_act[i]))
+                            lambda k, i: _angle(self.O[k], O_act[i]),
+                            self._orientation_tree, O_act)
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
                window: float = DEFAULT_WINDOW,
@@ -139,6 +146,15 @@ class ReferencePath:
         orientation = _angle(self.orientation(w), O_act)
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
+
+    @cached_property
+    def _tip_tree(self) -> cKDTree:
+        return cKDTree(self.P)
+
+    @cached_property
+    def _orientation_tree(self) -> cKDTree:
+        # chord length on the unit sphere is monotone in the angle
+        return cKDTree(self.O)
 
     @cached_property
     def progress(self) -> np.ndarray:
@@ -166,61 +182,63 @@ class ReferencePath:
         return base, np.maximum(lo, base - longest), np.minimum(hi, base + longest)
 
     def _search(self, start, window, window_length, gradient_and_curvature, distance,
-                sample_distance):
-        """Closest parameter in each window: scan the reference samples for the nearest
-        (``sample_distance(k, i)``: distance of actual point i to reference sample k), refine
+                sample_distance, tree, points):
+        """Closest parameter in each window: find the nearest reference sample in the window
+        (``tree``, a k-d tree of the reference samples, queried with the actual ``points``;
+        ``sample_distance(k, i)``: distance of actual point i to reference sample k), refine
         by Newton's method, and keep the refined point unless the sample itself is nearer."""
         start = self.t if start is None else np.asarray(start, dtype=float)
         base, lo, hi = self._window(start, window, window_length)
-        best_k = base.copy()
-        best = sample_distance(base, slice(None))
-        reach = int(round(window * (self.t.size - 1) / (self.t[-1] - self.t[0])))
-        stride = max(1, reach // SEED_SAMPLES_PER_SIDE)
-        # Every window spans the time window; windows stretched along slow stretches and
-        # stops reach further, and only those samples are scanned there.
         everyone = np.arange(base.size)
-        stretched = np.flatnonzero((lo < base - reach) | (hi > base + reach))
-        scans = [(everyone, range(-reach, reach + 1, stride))]
-        if stretched.size:
-            scans.append((stretched, [o for o in range(int((lo - base)[stretched].min()),
-                                                       int((hi - base)[stretched].max()) + 1,
-                                                       stride) if abs(o) > reach]))
-        for who, offsets in scans:
-            for offset in offsets:
-                if offset == 0:
-                    continue
-                k = base[who] + offset
-                inside = (k >= lo[who]) & (k <= hi[who])
-                i = who[inside]
+        # The NEIGHBOURS nearest samples overall, nearest first: if any lies in the window,
+        # the first such is the nearest sample in the window (a nearer one would be listed).
+        _, near = tree.query(points, k=min(NEIGHBOURS, self.t.size))
+        in_window = (near >= lo[:, None]) & (near <= hi[:, None])
+        found = in_window.any(axis=1)
+        best_k = np.where(found, near[everyone, np.argmax(in_window, axis=1)], base)
+        # Where the path comes back near itself more than NEIGHBOURS times, scan the window.
+        missing = np.flatnonzero(~found)
+        if missing.size:
+            best = sample_distance(base[missing], missing)
+            for offset in range(int((lo - base)[missing].min()),
+                                int((hi - base)[missing].max()) + 1):
+                k = base[missing] + offset
+                inside = (k >= lo[missing]) & (k <= hi[missing])
+                i = missing[inside]
                 d = sample_distance(k[inside], i)
-                better = d < best[i]
-                best[i[better]] = d[better]
+                better = d < best[inside]
+                best[np.flatnonzero(inside)[better]] = d[better]
                 best_k[i[better]] = k[inside][better]
         # The minimum lies within one sample of the best sample: bracket it there and refine
         # by Newton's method safeguarded with bisection on the sign of the gradient.
         a = self.t[np.maximum(best_k - 1, lo)]
         b = self.t[np.minimum(best_k + 1, hi)]
-        g_a, _ = gradient_and_curvature(a)
-        g_b, _ = gradient_and_curvature(b)
+        g_a, _ = gradient_and_curvature(a, everyone)
+        g_b, _ = gradient_and_curvature(b, everyone)
         interior = (g_a < 0) & (g_b > 0)
         # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
         # stands still) take bounded Newton / gradient steps inside the window.
         u_lo, u_hi = self.t[lo], self.t[hi]
         u = self.t[best_k].copy()
+        # Samples leave the iteration once their step falls below PARAMETER_TOLERANCE.
+        active = everyone
         for _ in range(NEWTON_ITERATIONS):
-            g, c = gradient_and_curvature(u)
-            b = np.where(g > 0, u, b)
-            a = np.where(g > 0, a, u)
-            newton = u - g / np.where(c > 0, c, np.inf)
-            inside = (c > 0) & (newton > a) & (newton < b)
-            bracketed = np.where(inside, newton, 0.5 * (a + b))
+            ua, aa, bb = u[active], a[active], b[active]
+            g, c = gradient_and_curvature(ua, active)
+            bb = np.where(g > 0, ua, bb)
+            aa = np.where(g > 0, aa, ua)
+            a[active], b[active] = aa, bb
+            newton = ua - g / np.where(c > 0, c, np.inf)
+            inside = (c > 0) & (newton > aa) & (newton < bb)
+            bracketed = np.where(inside, newton, 0.5 * (aa + bb))
             free_step = np.where(c > 0, -g / np.where(c > 0, c, 1.0), -np.sign(g) * MAX_STEP)
-            free = np.clip(u + np.clip(free_step, -MAX_STEP, MAX_STEP), u_lo, u_hi)
-            u_new = np.where(interior, bracketed, free)
-            if np.all(np.abs(u_new - u) <= 1e-14 * (1.0 + np.abs(u))):
-                u = u_new
+            free = np.clip(ua + np.clip(free_step, -MAX_STEP, MAX_STEP), u_lo[active],
+                           u_hi[active])
+            u_new = np.where(interior[active], bracketed, free)
+            u[active] = u_new
+            active = active[np.abs(u_new - ua) > PARAMETER_TOLERANCE]
+            if active.size == 0:
                 break
-            u = u_new
         candidates = [u, self.t[best_k]]
         values = np.stack([distance(c) for c in candidates])
         return np.choose(np.argmin(values, axis=0), candidates)
