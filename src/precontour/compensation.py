@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
 
-from .contour import ContourErrors, ReferencePath
+from .contour import ContourErrors, ReferencePath, contour_errors
 from .drives import LinearErrorModel
 from .trajectory import Trajectory
 from .tracking import predict_tracking
@@ -113,8 +113,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         return predicted_actual(t, q, models, tol_linear, tol_rotary)
 
     def errors_of(q_actual):
-        P, O = kinematics.forward(q_actual)
-        return reference.errors(P, O)
+        return contour_errors(reference, q_actual, kinematics)
 
     q_cmd = traj.q
     q_act = predict(q_cmd)
@@ -212,9 +211,8 @@ def _rotary_towards(kinematics, A, C, O_target):
     A = np.array(A, dtype=float)
     C = np.array(C, dtype=float)
     for _ in range(ROTARY_NEWTON_STEPS):
-        O = np.stack([np.sin(A) * np.sin(C), np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
         jac = kinematics.orientation_jacobian(A, C)                     # (N, 3, 2)
-        residual = O_target - O
+        residual = O_target - kinematics.orientation(A, C)
         normal = np.einsum("nki,nkj->nij", jac, jac)
         sin_a = np.abs(np.sin(A))
         damping = np.where(sin_a < POLE_ZONE,

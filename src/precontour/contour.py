@@ -2,9 +2,10 @@
 
 Spec section 5 (paper Eqs. 18-21). The reference tool tip P(u) and orientation O(w) are C4
 quintic interpolating splines of the reference samples, parameterized by time. For each actual
-sample the closest reference point is found by Newton's method on the spline, started at the
-time-corresponding parameter and kept inside a window around it, so a path that comes back near
-itself cannot capture the wrong branch. Everything is vectorized over samples.
+sample the closest reference point is searched inside a window around the time-corresponding
+parameter, so a path that comes back near itself cannot capture the wrong branch: the nearest
+reference sample in the window (from a k-d tree) starts Newton's method on the spline.
+Everything is vectorized over samples.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from scipy.spatial import cKDTree
 
 from .errors import InputError
+from .kinematics import angle_between
 from .trajectory import Trajectory
 
 #: The closest point is searched within DEFAULT_WINDOW seconds of the time-corresponding
@@ -130,8 +132,8 @@ class ReferencePath:
             return (-np.einsum("ij,ij->i", d1(w), O_act[i]),
                     -np.einsum("ij,ij->i", d2(w), O_act[i]))
         return self._search(w0, window, window_length, gradient_and_curvature,
-                            lambda w: _angle(curve(w), O_act),
-                            lambda k, i: _angle(self.O[k], O_act[i]),
+                            lambda w: angle_between(curve(w), O_act),
+                            lambda k, i: angle_between(self.O[k], O_act[i]),
                             self._orientation_tree, O_act)
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
@@ -143,7 +145,7 @@ class ReferencePath:
         u = self.closest_tip(P_act, t, window, window_length)
         w = self.closest_orientation(O_act, t, window, window_length)
         tip = np.linalg.norm(self.tip(u) - P_act, axis=1)
-        orientation = _angle(self.orientation(w), O_act)
+        orientation = angle_between(self.orientation(w), O_act)
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
 
@@ -161,7 +163,7 @@ class ReferencePath:
         """Path progress at each reference sample: tip arc length plus ORIENTATION_LENGTH mm
         per rad of orientation change (monotone), mm."""
         step = (np.linalg.norm(np.diff(self.P, axis=0), axis=1)
-                + ORIENTATION_LENGTH * _angle(self.O[:-1], self.O[1:]))
+                + ORIENTATION_LENGTH * angle_between(self.O[:-1], self.O[1:]))
         return np.concatenate([[0.0], np.cumsum(step)])
 
     def _window(self, start, window, window_length):
@@ -242,13 +244,6 @@ class ReferencePath:
         candidates = [u, self.t[best_k]]
         values = np.stack([distance(c) for c in candidates])
         return np.choose(np.argmin(values, axis=0), candidates)
-
-
-def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle between rows of a and b (not necessarily unit), accurate for small angles."""
-    cross = np.linalg.norm(np.cross(a, b), axis=1)
-    dot = np.einsum("ij,ij->i", a, b)
-    return np.arctan2(cross, dot)
 
 
 def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from .errors import InputError, ToolPathError
-from .kinematics import normalize_orientations
+from .kinematics import angle_between, normalize_orientations
 
 #: Equivalent length of one radian of tool rotation in the combined path parameter, mm/rad.
 L_EQ = 1.0
@@ -160,7 +160,7 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         raise ToolPathError(str(exc)) from None
 
     d_tip = np.linalg.norm(np.diff(P, axis=0), axis=1)
-    d_ang = _angle_between(O[:-1], O[1:])
+    d_ang = angle_between(O[:-1], O[1:])
     chord = np.hypot(d_tip, l_eq * d_ang)
     keep = np.concatenate([[True], chord >= DUPLICATE_TOLERANCE])
     # A run of duplicates collapses onto its first point; chords to the next kept point are
@@ -170,7 +170,7 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         raise ToolPathError(f"zero-length path: all {P.shape[0]} points have the same tool "
                             "tip and orientation", source=src)
     P, O = P[index], O[index]
-    d_ang = _angle_between(O[:-1], O[1:])
+    d_ang = angle_between(O[:-1], O[1:])
     big = d_ang > MAX_ORIENTATION_STEP
     if big.any():
         i = int(np.flatnonzero(big)[0])
@@ -193,11 +193,6 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
 def fit_toolpath(toolpath, *, l_eq: float = L_EQ) -> PathSpline:
     """:func:`fit_path` of a :class:`precontour.toolpath.ToolPath`."""
     return fit_path(toolpath.P, toolpath.O, l_eq=l_eq, source=toolpath.source)
-
-
-def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    # atan2 of |a x b| and a.b is accurate for small and large angles alike.
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
 def _interpolate(s: np.ndarray, P: np.ndarray, O: np.ndarray) -> tuple[BSpline, BSpline]:

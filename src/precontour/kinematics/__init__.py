@@ -22,7 +22,17 @@ KINEMATICS_TYPES = {
     "ac-trunnion": ACTrunnion.from_table,
 }
 
-__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "normalize_orientations"]
+__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "angle_between",
+           "normalize_orientations"]
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between vectors along the last axis, not necessarily unit.
+
+    atan2 of |a x b| and a . b is accurate for small and large angles alike, where arccos of
+    the dot product loses half the digits near 0.
+    """
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
 def normalize_orientations(O: np.ndarray, *, source: str | None = None,

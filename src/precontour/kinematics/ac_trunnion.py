@@ -47,7 +47,7 @@ class ACTrunnion:
         q = np.asarray(q, dtype=float)
         X, Y, Z, A, C = np.moveaxis(q, -1, 0)
         sA, cA, sC, cC = np.sin(A), np.cos(A), np.sin(C), np.cos(C)
-        O = np.stack([sA * sC, sA * cC, cA], axis=-1)
+        O = self.orientation(A, C)
         Px = -cC * X + sC * cA * Y + sA * sC * Z - sC * sA * self.L_ty
         Py = -sC * X - cC * cA * Y - sA * cC * Z + cC * sA * self.L_ty
         Pz = -sA * Y + cA * Z - cA * self.L_ty - self.L_ac
@@ -99,6 +99,11 @@ class ACTrunnion:
         Y = cA * sC * Px - cA * cC * Py - sA * Pz - sA * self.L_ac
         Z = sA * sC * Px - sA * cC * Py + cA * Pz + cA * self.L_ac + self.L_ty
         return np.stack([X, Y, Z], axis=-1)
+
+    def orientation(self, A: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """Unit tool orientation O[..., 3] for rotary axes A, C (spec section 1, first row)."""
+        sA = np.sin(A)
+        return np.stack([sA * np.sin(C), sA * np.cos(C), np.cos(A)], axis=-1)
 
     def orientation_jacobian(self, A: np.ndarray, C: np.ndarray) -> np.ndarray:
         """dO/d(A, C), shape ``A.shape + (3, 2)``; the C column vanishes at the pole A = 0."""
