@@ -15,11 +15,11 @@ import time
 from scipy import signal
 
 from precontour import load_machine
-from precontour.compensation import compensate
-from precontour.contour import ReferencePath, contour_errors
-from precontour.simulation import simulate_trajectory
-from precontour.tracking import predict_tracking
-from precontour.trajgen import generate_trajectory
+from precontour.compensation.precompensate import compensate
+from precontour.prediction.contour import ReferencePath, contour_errors
+from precontour.simulation.virtual_machine import simulate_trajectory
+from precontour.prediction.tracking import predict_tracking
+from precontour.trajectory.generate import generate_trajectory
 
 sys.path.insert(0, __file__.rsplit("/", 1)[0])
 from bench_trajectory import synthetic_path  # noqa: E402

@@ -15,7 +15,7 @@ import numpy as np
 from scipy import signal
 
 from precontour import load_machine
-from precontour.tracking import predict_tracking
+from precontour.prediction.tracking import predict_tracking
 
 
 def five_axis_trajectory(n_samples: int, ts: float = 1e-3):

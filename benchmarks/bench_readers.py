@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from precontour.machine import load_machine
+from precontour.machine.machine_file import load_machine
 from precontour.toolpath import read_apt, read_clcsv, read_gcode
 
 

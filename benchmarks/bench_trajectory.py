@@ -12,11 +12,11 @@ import time
 import numpy as np
 
 from precontour import load_machine
-from precontour.feedplan import plan_feed
-from precontour.pathspline import fit_toolpath
+from precontour.trajectory.feedplan import plan_feed
+from precontour.trajectory.pathspline import fit_toolpath
 from precontour.toolpath import ToolPath
-from precontour.trajectory import Trajectory
-from precontour.trajgen import summarize
+from precontour.trajectory.sampled import Trajectory
+from precontour.trajectory.generate import summarize
 
 
 def synthetic_path(n_points: int) -> ToolPath:

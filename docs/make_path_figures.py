@@ -13,8 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from precontour import load_machine  # noqa: E402
-from precontour.builtin_paths import BUILTIN_PATHS, builtin_path  # noqa: E402
-from precontour.trajgen import generate_trajectory, summarize  # noqa: E402
+from precontour.trajectory.builtin_paths import BUILTIN_PATHS, builtin_path  # noqa: E402
+from precontour.trajectory.generate import generate_trajectory, summarize  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "paths"
 

@@ -8,9 +8,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from precontour import load_machine
-from precontour.tables import read_trajectory
-from precontour.tracking import predict_tracking
+from precontour import load_machine, predict_tracking, read_trajectory
 
 machine = load_machine("zhang2013")
 models = machine.controller("pid-low").error_models(machine.drives)

@@ -4,12 +4,8 @@ of both commands on the virtual machine (discrete PID, friction, feed-forward).
 Run: python examples/02_compensate_and_measure.py
 """
 
-from precontour import load_machine
-from precontour.builtin_paths import builtin_path
-from precontour.compensation import compensate
-from precontour.contour import ReferencePath, contour_errors
-from precontour.simulation import simulate_trajectory
-from precontour.trajgen import generate_trajectory
+from precontour import (ReferencePath, builtin_path, compensate, contour_errors,
+                        generate_trajectory, load_machine, simulate_trajectory)
 
 machine = load_machine("zhang2013")
 traj = generate_trajectory(builtin_path("paper"), machine)

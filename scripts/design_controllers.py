@@ -3,7 +3,7 @@
 Run ``python scripts/design_controllers.py``: prints the TOML tables shipped in
 ``src/precontour/data/zhang2013.toml`` and the bandwidths they give.
 
-Rules (see :func:`precontour.controllers.design_p_pi` and :func:`design_smc`):
+Rules (see :func:`precontour.machine.controllers.design_p_pi` and :func:`design_smc`):
 - ``p-pi-high`` / ``p-pi-low``: the paper's PID bandwidths, 55.8 Hz and 38.6 Hz (-3 dB of x/X);
   velocity loop at 2x (what 1 kHz sampling allows), PI zero at 1/4 of the velocity loop, kp tuned to the bandwidth;
   no feed-forward (the paper compares plain P-PI, which lags).
@@ -13,8 +13,8 @@ Rules (see :func:`precontour.controllers.design_p_pi` and :func:`design_smc`):
 
 from __future__ import annotations
 
-from precontour.controllers import closed_loop_bandwidth, design_p_pi, design_smc
-from precontour.machine import load_machine
+from precontour.machine.controllers import closed_loop_bandwidth, design_p_pi, design_smc
+from precontour.machine.machine_file import load_machine
 
 P_PI_BANDWIDTHS = {"p-pi-high": 55.8, "p-pi-low": 38.6}
 SMC_BANDWIDTH = 80.0

@@ -16,11 +16,11 @@ import sys
 import time
 
 from precontour import load_machine
-from precontour.builtin_paths import BUILTIN_PATHS, builtin_path
-from precontour.compensation import compensate
-from precontour.contour import ReferencePath, contour_errors
-from precontour.simulation import simulate_trajectory
-from precontour.trajgen import generate_trajectory
+from precontour.trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
+from precontour.compensation.precompensate import compensate
+from precontour.prediction.contour import ReferencePath, contour_errors
+from precontour.simulation.virtual_machine import simulate_trajectory
+from precontour.trajectory.generate import generate_trajectory
 
 MACHINES = {
     "exact": dict(mode="continuous", friction=False, ff_friction=False),

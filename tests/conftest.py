@@ -1,9 +1,11 @@
-"""Shared fixtures: the built-in machine and a smooth analytic five-axis trajectory."""
+"""Shared fixtures and helpers: the built-in machine, a smooth analytic five-axis trajectory,
+and the sampled (ZOH) closed loops that the controller and virtual-machine tests check against."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.signal as sig
 
 from precontour import load_machine
 
@@ -51,3 +53,41 @@ def analytic_axis(t, duration, start, travel, wiggle, freq):
     """(x, v, a, j) of :class:`AnalyticAxis` at t."""
     axis = AnalyticAxis(duration, start, travel, wiggle, freq)
     return tuple(axis(t, k) for k in range(4))
+
+
+def zoh_plant(drive: Drive, ts: float):
+    A = np.array([[0.0, drive.rg], [0.0, -drive.B / drive.J]])
+    Bm = np.array([[0.0], [drive.ka * drive.kt / drive.J]])
+    Ad, Bd, Cd, Dd, _ = sig.cont2discrete((A, Bm, np.array([[1.0, 0.0]]), np.zeros((1, 1))),
+                                          ts, method="zoh")
+    Np, Dp = sig.ss2tf(Ad, Bd, Cd, Dd)
+    return np.trim_zeros(Np[0], "f"), Dp
+
+
+def discrete_p_pi_error(drive: Drive, g: PPIGains, ts: float):
+    """e(z)/X(z) of the sampled P-PI (no feed-forward): encoder velocity D = (z-1)/(Ts z),
+    rectangle-rule PI C = kv + ki_v Ts z/(z-1); e/X = (1 + P C D) / (1 + P C (kp + D))."""
+    Np, Dp = zoh_plant(drive, ts)
+    Nc = g.kv * np.array([1.0, -1.0]) + g.ki_v * ts * np.array([1.0, 0.0])
+    Dc = np.array([1.0, -1.0])
+    Nd, Dd = np.array([1.0, -1.0]), np.array([ts, 0.0])
+    base = np.polymul(np.polymul(Dp, Dc), Dd)
+    num = np.polyadd(base, np.polymul(np.polymul(Np, Nc), Nd))
+    den = np.polyadd(base, np.polymul(np.polymul(Np, Nc), np.polyadd(g.kp * Dd, Nd)))
+    return num, den
+
+
+def discrete_closed_loop_error(drive, gains, ts):
+    """e(z)/X(z) of the ZOH plant (cont2discrete) closed by the rectangle/backward-difference
+    PID C(z) = kp + ki Ts z/(z-1) + kd (z-1)/(Ts z), as polynomials in z."""
+    A = np.array([[0.0, drive.rg], [0.0, -drive.B / drive.J]])
+    Bm = np.array([[0.0], [drive.ka * drive.kt / drive.J]])
+    Ad, Bd, Cd, Dd, _ = sig.cont2discrete((A, Bm, np.array([[1.0, 0.0]]), np.zeros((1, 1))),
+                                          ts, method="zoh")
+    Np, Dp = sig.ss2tf(Ad, Bd, Cd, Dd)
+    Nc = (gains.kp * np.array([1.0, -1.0, 0.0]) + gains.ki * ts * np.array([1.0, 0.0, 0.0])
+          + gains.kd / ts * np.array([1.0, -2.0, 1.0]))
+    Dc = np.array([1.0, -1.0, 0.0])
+    num = np.polymul(Dp, Dc)
+    den = np.polyadd(num, np.polymul(np.trim_zeros(Np[0], "f"), Nc))
+    return num, den

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from precontour.contour import ReferencePath
+from precontour.prediction.contour import ReferencePath
 from precontour.errors import InputError
 from precontour.tables import read_columns, read_trajectory, write_columns
 

@@ -1,13 +1,36 @@
 """precontour: analytical prediction and pre-compensation of five-axis CNC contour errors.
 
-Pipeline (one module per stage): machine file -> kinematics -> trajectory -> spline fit ->
-tracking-error prediction -> contour errors -> compensation -> simulation -> report.
+The package is laid out by pipeline stage; data flows one way, and a stage imports only the
+stages before it::
+
+    machine/       machine file, drives, controllers, kinematics
+    toolpath/      programs in: CL CSV, APT CL data, G-code
+    trajectory/    path splines, feed planning, 1 kHz axis commands (Trajectory)
+    prediction/    minimum-jerk spline fit, closed-form tracking error, contour errors
+    compensation/  pre-compensation (contour, tracking)
+    simulation/    the virtual machine and its control laws
+    reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
+    tables.py      checked CSV / .npz / .parquet in and out
+    cli.py         the ``precontour`` command
+
+The names below are the entry points a library user needs.
 """
 
-from .errors import InputError, MachineFileError, PrecontourError
+from .compensation import CompensationResult, compensate
+from .errors import InputError, MachineFileError, PrecontourError, ToolPathError
 from .machine import Machine, load_machine
+from .prediction import (AxisPrediction, ContourErrors, ReferencePath, contour_errors,
+                         predict_tracking)
+from .simulation import SimulationResult, simulate, simulate_trajectory
+from .tables import read_trajectory, write_columns
+from .toolpath import ToolPath, read_toolpath
+from .trajectory import Trajectory, builtin_path, generate_trajectory
 
 __version__ = "0.1.0"
 
-__all__ = ["InputError", "Machine", "MachineFileError", "PrecontourError", "load_machine",
-           "__version__"]
+__all__ = ["AxisPrediction", "CompensationResult", "ContourErrors", "InputError", "Machine",
+           "MachineFileError", "PrecontourError", "ReferencePath", "SimulationResult",
+           "ToolPath", "ToolPathError", "Trajectory", "builtin_path", "compensate",
+           "contour_errors", "generate_trajectory", "load_machine", "predict_tracking",
+           "read_toolpath", "read_trajectory", "simulate", "simulate_trajectory",
+           "write_columns", "__version__"]

@@ -14,20 +14,20 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .drives import AXES, ROTARY_AXES
-from .builtin_paths import BUILTIN_PATHS, builtin_path
-from .compensation import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
+from .machine.drives import AXES, ROTARY_AXES
+from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
+from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
                            compensate)
-from .contour import ReferencePath, contour_errors
+from .prediction.contour import ReferencePath, contour_errors
 from .errors import InputError, PrecontourError
-from .feedplan import DEFAULT_FEED
-from .machine import load_machine
-from .simulation import simulate
-from .splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
+from .trajectory.feedplan import DEFAULT_FEED
+from .machine.machine_file import load_machine
+from .simulation.virtual_machine import simulate
+from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
 from .tables import read_trajectory, trajectory_columns, write_columns
 from .toolpath import read_toolpath
-from .tracking import predict_tracking
-from .trajgen import DEFAULT_DWELL, generate_trajectory, summarize
+from .prediction.tracking import predict_tracking
+from .trajectory.generate import DEFAULT_DWELL, generate_trajectory, summarize
 
 EXIT_USAGE = 2
 
@@ -327,8 +327,8 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 
 def run_demo(args: argparse.Namespace) -> int:
-    from .demo import ProgressLine, run_demo as demo_run
-    from .report import MACHINE_LABELS, format_table
+    from .reports.demo_report import MACHINE_LABELS, format_table, run_demo as demo_run
+    from .reports.progress import ProgressLine
 
     paths = tuple(name.strip() for name in args.paths.split(",") if name.strip())
     progress = ProgressLine(sys.stderr)
@@ -346,9 +346,8 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    from .compare import run_compare as compare_run
-    from .compare_report import format_contour_table
-    from .demo import ProgressLine
+    from .reports.compare_report import format_contour_table, run_compare as compare_run
+    from .reports.progress import ProgressLine
 
     progress = ProgressLine(sys.stderr)
     try:

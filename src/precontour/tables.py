@@ -14,10 +14,10 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from .drives import AXES
+from .machine.drives import AXES
 from .errors import InputError
-from .kinematics import normalize_orientations
-from .trajectory import Trajectory, check_uniform_time
+from .machine.kinematics import normalize_orientations
+from .trajectory.sampled import Trajectory, check_uniform_time
 
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("t",) + AXES
 REFERENCE_COLUMNS: tuple[str, ...] = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")

@@ -5,7 +5,7 @@ Each reader (one module per file format: :mod:`.clcsv`, :mod:`.apt`, :mod:`.gcod
 ``*_report`` variants return a :class:`ReadReport` with the source line of each point, rapid
 flags, and what was dropped or skipped. All readers apply the same checks
 (:func:`._common.finish`). Trajectory generation turns a tool path into a time-stamped
-:class:`~precontour.trajectory.Trajectory`.
+:class:`~precontour.trajectory.sampled.Trajectory`.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InputError, ToolPathError
-from ..kinematics import UNIT_TOLERANCE, normalize_orientations
+from ..machine.kinematics import UNIT_TOLERANCE, normalize_orientations
 from . import ToolPath
 
 #: Feed units a reader accepts for numbers that do not carry their own unit, and the factor
@@ -125,7 +125,7 @@ def finish(P, O, feed, *, lines, source: str, format: str, empty: str, rapid=Non
     ------
     ToolPathError
         No points; a non-finite value; a zero-length orientation; an orientation whose
-        length is off one by more than :data:`~precontour.kinematics.UNIT_TOLERANCE`; a
+        length is off one by more than :data:`~precontour.machine.kinematics.UNIT_TOLERANCE`; a
         non-positive or infinite feed; fewer than two distinct points; an orientation that
         turns by more than 90 degrees in one move.
     """

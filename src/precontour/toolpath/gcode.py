@@ -75,7 +75,7 @@ def read_gcode(path: str | Path, machine, *, block_delete: bool = True):
         G-code file in machine axes (see the module docstring).
     machine : Machine or str
         The machine (or a built-in machine name / machine file for
-        :func:`~precontour.machine.load_machine`); ``machine.kinematics.forward(q)`` maps
+        :func:`~precontour.machine.machine_file.load_machine`); ``machine.kinematics.forward(q)`` maps
         axis positions to tool tip and orientation.
     block_delete : bool
         Skip blocks starting with ``/`` (block-delete switch on).
@@ -366,7 +366,7 @@ def _code(value) -> str:
 
 def _kinematics(machine):
     if isinstance(machine, (str, Path)):
-        from ..machine import load_machine
+        from ..machine.machine_file import load_machine
         machine = load_machine(machine)
     kinematics = getattr(machine, "kinematics", None)
     if kinematics is None or not hasattr(kinematics, "forward"):

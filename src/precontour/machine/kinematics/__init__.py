@@ -1,0 +1,57 @@
+"""Five-axis machine kinematics, one module per machine type, picked by name.
+
+Each type registers a factory in :data:`KINEMATICS_TYPES` that takes the machine file's
+``[kinematics]`` table and returns an object with vectorized ``inverse(P, O)`` (tool tip and
+orientation in the workpiece frame to axis positions q = [X, Y, Z, A, C]) and ``forward(q)``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ...errors import InputError
+from .ac_trunnion import ACTrunnion
+
+#: Tolerance on | |O| - 1 | below which orientations are normalized (with a warning) instead
+#: of being rejected.
+UNIT_TOLERANCE = 1e-6
+
+KINEMATICS_TYPES = {
+    "ac-trunnion": ACTrunnion.from_table,
+}
+
+__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "angle_between",
+           "normalize_orientations"]
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between vectors along the last axis, not necessarily unit.
+
+    atan2 of |a x b| and a . b is accurate for small and large angles alike, where arccos of
+    the dot product loses half the digits near 0.
+    """
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+def normalize_orientations(O: np.ndarray, *, source: str | None = None,
+                           first_row: int = 1) -> np.ndarray:
+    """Return unit orientation vectors, or raise naming the first non-unit row.
+
+    Rows whose length is within :data:`UNIT_TOLERANCE` of one are normalized (with a single
+    warning when any needed more than round-off); others raise :class:`InputError`.
+    """
+    O = np.asarray(O, dtype=float)
+    norm = np.linalg.norm(O, axis=-1)
+    deviation = np.abs(norm - 1.0)
+    bad = ~(deviation <= UNIT_TOLERANCE)  # NaN counts as bad
+    if np.any(bad):
+        row = int(np.flatnonzero(np.atleast_1d(bad))[0])
+        value = np.atleast_1d(norm)[row]
+        raise InputError(f"orientation vector is not unit length (|O| = {value:.9g})",
+                         source=source, row=row + first_row, field="O")
+    if np.any(deviation > 1e-12):
+        warnings.warn(f"{source or 'orientations'}: normalized orientation vectors with "
+                      f"|O| off by up to {deviation.max():.2g}", stacklevel=2)
+    return O / norm[..., None]

@@ -1,0 +1,141 @@
+"""Trajectory generation: a programmed :class:`~precontour.toolpath.ToolPath` in, a
+time-stamped five-axis :class:`~precontour.trajectory.sampled.Trajectory` out.
+
+Glue of two stages: :func:`precontour.trajectory.pathspline.fit_toolpath` (C3 geometric splines) and
+:func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis limits);
+plus :func:`summarize`, the numbers the command line prints about a trajectory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..machine.drives import AXES
+from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
+                       plan_feed)
+from .pathspline import L_EQ, fit_toolpath
+from .sampled import Trajectory
+
+
+#: Default time (s) the final command is held so that the drives settle inside the trajectory.
+DEFAULT_DWELL = 0.2
+
+
+def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
+                        acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
+                        l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL) -> Trajectory:
+    """Time-stamped axis commands that follow ``toolpath`` on ``machine`` within its limits.
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        Programmed tool tips (mm), unit orientations and optional feeds (mm/s, NaN where
+        none); see :func:`precontour.trajectory.pathspline.fit_path` for how points are interpolated
+        and which degenerate inputs raise :class:`~precontour.errors.ToolPathError`.
+    machine : Machine
+        Kinematics and drive limits.
+    feed : float
+        Maximum tool tip feed, mm/s; programmed feeds above it are capped.
+    ts : float
+        Sampling period, s.
+    acceleration, jerk : float
+        Tool tip acceleration (mm/s^2) and tangential jerk (mm/s^3) limits.
+    l_eq : float
+        Equivalent length of one radian of tool rotation in the path parameter, mm/rad.
+    dwell : float
+        Seconds the final position is held at the end. The drives lag their commands, so
+        when the command stops the machine has not arrived yet; the dwell keeps that
+        settling motion inside the trajectory, where errors are measured and where
+        pre-compensation can act on it. 0 ends the trajectory when the command stops.
+
+    Returns
+    -------
+    Trajectory
+        ``t`` uniform from 0 with step ``ts``; ``q`` (N, 5) from path-mode inverse kinematics
+        (C unwrapped, continuous through A = 0); reference ``P``, ``O`` at each sample.
+        Starts and stops at rest.
+    """
+    path = fit_toolpath(toolpath, l_eq=l_eq)
+    profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
+                        programmed_feed=toolpath.feed)
+    t, q, P, O = profile.t, profile.q, profile.P, profile.O
+    if not (dwell >= 0 and np.isfinite(dwell)):
+        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    n_hold = int(round(dwell / ts))
+    if n_hold:
+        t = np.concatenate([t, t[-1] + ts * np.arange(1, n_hold + 1)])
+        q, P, O = (np.concatenate([a, np.repeat(a[-1:], n_hold, axis=0)]) for a in (q, P, O))
+    return Trajectory(t=t, q=q, P=P, O=O)
+
+
+@dataclass(frozen=True)
+class TrajectorySummary:
+    """Duration, samples, peak feed and each axis's peak derivatives against its limits.
+
+    Peaks are finite differences at the sampling period: velocity (first), acceleration
+    (second) and jerk (third differences). Units: mm or rad per s, s^2, s^3.
+    """
+
+    duration: float
+    n_samples: int
+    ts: float
+    peak_feed: float
+    peak_velocity: np.ndarray
+    peak_acceleration: np.ndarray
+    peak_jerk: np.ndarray
+    v_max: np.ndarray
+    a_max: np.ndarray
+    j_max: np.ndarray
+
+    @property
+    def within_limits(self) -> bool:
+        """True when no axis peak exceeds its limit (relative round-off 1e-9)."""
+        tol = 1.0 + 1e-9
+        return bool(np.all(self.peak_velocity <= self.v_max * tol)
+                    and np.all(self.peak_acceleration <= self.a_max * tol)
+                    and np.all(self.peak_jerk <= self.j_max * tol))
+
+    def format(self) -> str:
+        """Multi-line text: a header, then one line per axis with each peak, its limit and
+        the percentage of the limit used (units mm or rad, per s, s^2, s^3)."""
+        lines = [f"duration {self.duration:.4f} s, {self.n_samples} samples at "
+                 f"{self.ts * 1e3:g} ms, peak feed {self.peak_feed:.2f} mm/s",
+                 f"{'axis':<9}" + "".join(f"{head:>28}" for head in
+                                          ("velocity peak/limit", "acceleration peak/limit",
+                                           "jerk peak/limit"))]
+        for i, axis in enumerate(AXES):
+            unit = "mm" if axis in ("X", "Y", "Z") else "rad"
+            cells = []
+            for peak, limit in ((self.peak_velocity, self.v_max),
+                                (self.peak_acceleration, self.a_max),
+                                (self.peak_jerk, self.j_max)):
+                pct = f"{100 * peak[i] / limit[i]:5.1f}%" if np.isfinite(limit[i]) else "    -"
+                cells.append(f"{peak[i]:9.4g} / {limit[i]:<8.4g}{pct:>7}")
+            lines.append(f"{axis + ' (' + unit + ')':<9}" + "".join(f"{c:>28}" for c in cells))
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.format()
+
+
+def summarize(trajectory: Trajectory, machine) -> TrajectorySummary:
+    """Summary of ``trajectory`` against ``machine``'s drive limits (see
+    :class:`TrajectorySummary`); the peak feed needs the reference tip ``P`` (0 without)."""
+    ts = trajectory.ts
+    q = trajectory.q
+    peaks = []
+    for order in (1, 2, 3):
+        if q.shape[0] > order:
+            peaks.append(np.abs(np.diff(q, order, axis=0)).max(axis=0) / ts**order)
+        else:
+            peaks.append(np.zeros(len(AXES)))
+    peak_feed = 0.0
+    if trajectory.P is not None and trajectory.n_samples > 1:
+        peak_feed = float(np.linalg.norm(np.diff(trajectory.P, axis=0), axis=1).max() / ts)
+    v, a, j = axis_limits(machine)
+    return TrajectorySummary(duration=trajectory.duration, n_samples=trajectory.n_samples,
+                             ts=ts, peak_feed=peak_feed, peak_velocity=peaks[0],
+                             peak_acceleration=peaks[1], peak_jerk=peaks[2],
+                             v_max=v, a_max=a, j_max=j)

@@ -1,0 +1,105 @@
+"""The package's layout: stages import only the stages before them, and there are no cycles."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import precontour
+
+PACKAGE = Path(precontour.__file__).parent
+#: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
+STAGES = ("errors", "machine", "toolpath", "trajectory", "tables", "prediction", "compensation",
+          "simulation", "reports", "cli")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """Absolute names of the precontour modules that ``path`` imports (anywhere in it)."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.startswith("precontour"):
+                found.add(target)
+                found.update(f"{target}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("precontour"))
+    return found
+
+
+def _stage(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+MODULES = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def test_every_module_belongs_to_a_stage():
+    stray = sorted(m for m in MODULES if _stage(m) not in STAGES + (None, "__main__"))
+    assert not stray, stray
+
+
+def test_no_module_imports_a_later_stage():
+    wrong = []
+    for module, path in MODULES.items():
+        own = _stage(module)
+        if own in (None, "__main__"):
+            continue
+        for target in _imports(path):
+            other = _stage(target)
+            if other in STAGES and STAGES.index(other) > STAGES.index(own):
+                wrong.append(f"{module} imports {target}")
+    assert not wrong, wrong
+
+
+def test_no_import_cycles():
+    graph = {m: {t for t in _imports(p) if t in MODULES and t != m} for m, p in MODULES.items()}
+    # A package's __init__ re-exporting its modules is not a cycle of the modules themselves.
+    graph = {m: {t for t in ts if not m.startswith(t + ".")} for m, ts in graph.items()}
+    state: dict[str, int] = {}
+
+    def visit(node, trail):
+        state[node] = 1
+        for nxt in graph[node]:
+            if state.get(nxt) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(trail + [node, nxt]))
+            if nxt not in state:
+                visit(nxt, trail + [node])
+        state[node] = 2
+
+    for module in graph:
+        if module not in state:
+            visit(module, [])
+
+
+def test_public_face():
+    for name in ("load_machine", "read_toolpath", "generate_trajectory", "predict_tracking",
+                 "contour_errors", "compensate", "simulate", "Trajectory", "ToolPath",
+                 "ContourErrors", "CompensationResult", "SimulationResult", "Machine"):
+        assert name in precontour.__all__ and hasattr(precontour, name), name
+
+
+def test_examples_use_only_the_public_face():
+    examples = sorted((Path(__file__).parents[1] / "examples").glob("[0-9][0-9]_*.py"))
+    assert examples
+    for path in examples:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("precontour"):
+                assert node.module == "precontour", f"{path.name} imports {node.module}"
+                missing = [a.name for a in node.names if a.name not in precontour.__all__]
+                assert not missing, f"{path.name} imports {missing}"
+            elif isinstance(node, ast.Import):
+                assert not any(a.name.startswith("precontour.") for a in node.names), path.name
