@@ -175,16 +175,21 @@ class TrunnionKinematics:
 
         Candidates: C continuous with period pi (the tilt changes sign where the path crosses
         the pole), starting with either tilt sign; and C with period 2 pi on one tilt sign
-        only (C turns by pi where the path crosses the pole, which the feed planner slows
-        down for). Preferred: least overrun of the tilt travel, then no such half-turn, then
-        the most room inside the travel, then tilt >= 0 at the start.
+        only (C turns by pi where the path crosses the pole). Preferred: least overrun of the
+        tilt travel, then no such half-turn, then the most room inside the travel, then
+        tilt >= 0 at the start. A half-turn exactly at the pole is a jump of C between two
+        samples, which the feed planner refuses: such a path cannot be cut within the travel
+        without stopping at the pole.
         """
+        if all(limit is None for limit in self.tilt_limits):
+            # free travel: the commanded tilt is >= 0 at the start
+            return _unwrap_path(c_up if self.tilt_direction > 0 else c_up + np.pi, defined,
+                                np.pi, None)
         first = _first_defined(c_up, defined)
         candidates = [(_unwrap_path(c_up, defined, np.pi, first + shift), 0)
                       for shift in (0.0, np.pi)]
-        if any(limit is not None for limit in self.tilt_limits):
-            candidates += [(_unwrap_path(c_up + shift, defined, 2.0 * np.pi, None), 1)
-                           for shift in (0.0, np.pi)]
+        candidates += [(_unwrap_path(c_up + shift, defined, 2.0 * np.pi, None), 1)
+                       for shift in (0.0, np.pi)]
         best = min(candidates,
                    key=lambda item: self._branch_rank(tilt_of(item[0]), defined, item[1]))
         return best[0]
