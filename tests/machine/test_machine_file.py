@@ -165,3 +165,26 @@ def test_trunnion_machine_file_errors(tmp_path, machine_name, old, new, pattern)
         load_machine(path)
     assert str(info.value).startswith(str(path))
     assert "\n" not in str(info.value).strip()
+
+
+@pytest.mark.parametrize("name, tilt_deg, c_deg", [
+    # ranges of LinuxCNC's table-rotary-tilting demo programs (TCP mode, degrees):
+    ("linuxcnc-xyzac-trt", (-74.49, 0.0), (-399.805, 0.0)),      # impeller-7bl-xyzac.ngc
+    ("linuxcnc-xyzac-trt", (-75.001, 0.0), (-154.392, 270.0)),   # boat-xyzac.ngc
+    ("linuxcnc-xyzbc-trt", (-75.001, 0.0), (-64.392, 360.0)),    # boat-xyzbc.ngc
+])
+def test_linuxcnc_demo_programs_fit_the_travel(name, tilt_deg, c_deg):
+    machine = load_machine(name)
+    tilt, c = machine.drives[3], machine.drives[4]
+    assert tilt.p_min < np.radians(tilt_deg[0]) and np.radians(tilt_deg[1]) < tilt.p_max
+    assert c.p_min < np.radians(c_deg[0]) and np.radians(c_deg[1]) < c.p_max
+    # the programs' tool tips span about x -50..50, y -45..45, z -14..40 mm in the workpiece
+    # frame: every corner of that box at every tilt and turn of the programs stays inside
+    # the linear travel
+    corners = np.array(np.meshgrid([-50, 50], [-45, 45], [-14, 40])).reshape(3, -1).T
+    rotary = np.radians(np.array(np.meshgrid(np.linspace(*tilt_deg, 16),
+                                             np.linspace(-180, 180, 37))).reshape(2, -1).T)
+    xyz = machine.kinematics.linear_axes(corners[:, None, :], rotary[None, :, 0],
+                                         rotary[None, :, 1])
+    for i, drive in enumerate(machine.drives[:3]):
+        assert drive.p_min < xyz[..., i].min() and xyz[..., i].max() < drive.p_max
