@@ -33,8 +33,8 @@ KINEMATICS_TYPES = {
     "xyzbc-trt": XYZBCTrunnion.from_table,
 }
 
-__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "XYZACTrunnion", "XYZBCTrunnion", "UNIT_TOLERANCE", "angle_between",
-           "normalize_orientations"]
+__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "XYZACTrunnion", "XYZBCTrunnion",
+           "angle_between", "normalize_orientations"]
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
