@@ -27,7 +27,7 @@ def synthetic_path(n_points: int) -> ToolPath:
     P = np.stack([r * np.cos(theta), r * np.sin(theta), 30.0 * np.cos(r / 40.0)], axis=-1)
     A = 0.6 + 0.3 * np.sin(7 * theta / turns)
     C = theta + 0.4 * np.sin(3 * theta)
-    O = np.stack([np.sin(A) * np.sin(C), np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
+    O = np.stack([np.sin(A) * np.sin(C), -np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
     return ToolPath(P=P, O=O, source="synthetic")
 
 

@@ -19,6 +19,8 @@ from .errors import InputError
 from .machine.kinematics import normalize_orientations
 from .trajectory.sampled import Trajectory, check_uniform_time
 
+#: Axis columns are named X,Y,Z,A,C on every machine (a public format); on a B-C machine
+#: column A holds the B axis (slot 3 of q).
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("t",) + AXES
 REFERENCE_COLUMNS: tuple[str, ...] = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")
 SUPPORTED_SUFFIXES: tuple[str, ...] = (".csv", ".npz", ".parquet")

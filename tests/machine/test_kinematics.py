@@ -1,4 +1,5 @@
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -6,7 +7,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from precontour.errors import InputError
-from precontour.machine.kinematics import ACTrunnion, normalize_orientations
+from precontour.machine.kinematics import (ACTrunnion, XYZACTrunnion, XYZBCTrunnion,
+                                           normalize_orientations)
 from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
 
 KIN = ACTrunnion(L_ac=100.0, L_ty=300.0)
@@ -49,7 +51,7 @@ def test_tool_to_axes_and_back(P, O):
 def test_inverse_matches_spec_formulas_on_a_known_point():
     # A = 0.5, C = 0.3, hand-evaluated spec section 1 formulas
     A, C = 0.5, 0.3
-    O = np.array([np.sin(A) * np.sin(C), np.sin(A) * np.cos(C), np.cos(A)])
+    O = np.array([np.sin(A) * np.sin(C), -np.sin(A) * np.cos(C), np.cos(A)])
     P = np.array([10.0, -20.0, 30.0])
     X = -np.cos(C) * 10 - np.sin(C) * -20
     Y = np.cos(A) * np.sin(C) * 10 - np.cos(A) * np.cos(C) * -20 - np.sin(A) * 30 - np.sin(A) * 100
@@ -92,7 +94,7 @@ def test_exactly_vertical_stretch_interpolates_c():
     n = 300
     angle = np.concatenate([np.linspace(0.5, 0, 100), np.zeros(100), np.linspace(0, 0.5, 100)])
     c = np.concatenate([np.full(100, 0.2), np.zeros(100), np.full(100, 0.8)])
-    O = np.stack([np.sin(angle) * np.sin(c), np.sin(angle) * np.cos(c), np.cos(angle)], axis=1)
+    O = np.stack([np.sin(angle) * np.sin(c), -np.sin(angle) * np.cos(c), np.cos(angle)], axis=1)
     P = np.zeros((n, 3))
     q = KIN_POSITIVE_A.inverse(P, O)
     C = q[:, 4]
@@ -106,14 +108,14 @@ def test_exactly_vertical_stretch_interpolates_c():
 
 def test_c_unwraps_over_several_turns():
     c = np.linspace(0, 6 * np.pi, 5000)
-    O = np.stack([0.5 * np.sin(c), 0.5 * np.cos(c), np.full_like(c, np.sqrt(0.75))], axis=1)
+    O = np.stack([0.5 * np.sin(c), -0.5 * np.cos(c), np.full_like(c, np.sqrt(0.75))], axis=1)
     q = KIN.inverse(np.zeros((c.size, 3)), O)
     np.testing.assert_allclose(q[:, 4], c, atol=1e-12)
     np.testing.assert_allclose(q[:, 3], np.arccos(np.sqrt(0.75)), atol=1e-12)
 
 
 def test_c_near_scalar_picks_the_period():
-    O = np.array([[0.0, 0.5, np.sqrt(0.75)]] * 3)
+    O = np.array([[0.0, -0.5, np.sqrt(0.75)]] * 3)
     q = KIN_POSITIVE_A.inverse(np.zeros((3, 3)), O, c_near=4 * np.pi + 0.1)
     np.testing.assert_allclose(q[:, 4], 4 * np.pi)
 
@@ -130,3 +132,160 @@ def test_non_unit_orientation():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         normalize_orientations(np.array([[0.0, 0.0, 1.0 + 1e-15]]))   # round-off: silent
+
+
+# --------------------------------------------------------------------------- every type
+
+S3 = np.sqrt(3.0) / 2.0
+#: LinuxCNC's simulator geometries (xyzac-trt.ini / xyzbc-trt.ini HAL settings), default
+#: directions (conventional-directions 0), plus variants with other offsets and signs.
+XYZAC_SIM = XYZACTrunnion(x_rot_point=0.0, y_rot_point=0.0, z_rot_point=0.0, y_offset=20.0,
+                          z_offset=10.0, tool_offset=0.0, a_direction=-1.0, c_direction=-1.0)
+XYZBC_SIM = XYZBCTrunnion(x_rot_point=0.0, y_rot_point=0.0, z_rot_point=0.0, x_offset=-20.0,
+                          z_offset=-15.0, tool_offset=0.0, b_direction=-1.0, c_direction=-1.0)
+ALL_KINEMATICS = {
+    "ac-trunnion": KIN,
+    "ac-trunnion A>=0": KIN_POSITIVE_A,
+    "xyzac-trt sim": XYZAC_SIM,
+    "xyzac-trt offsets +-": XYZACTrunnion(12.0, -7.0, 35.0, 20.0, 10.0, 45.0, 1.0, -1.0),
+    "xyzac-trt limited": replace(XYZAC_SIM, a_min=np.radians(-100), a_max=np.radians(50)),
+    "xyzbc-trt sim": XYZBC_SIM,
+    "xyzbc-trt offsets -+": XYZBCTrunnion(-9.0, 4.0, -25.0, -20.0, -15.0, 60.0, -1.0, 1.0),
+    "xyzbc-trt limited": replace(XYZBC_SIM, b_min=np.radians(-100), b_max=np.radians(50)),
+}
+KINEMATICS_PARAMS = pytest.mark.parametrize("kin", list(ALL_KINEMATICS.values()),
+                                            ids=list(ALL_KINEMATICS))
+
+
+@pytest.mark.parametrize("kin, q_deg, P, O", [
+    # LinuxCNC trtfuncs.c xyzacKinematicsForward evaluated by hand (con = -1, dy 20, dz 10):
+    # A = C = 0: every rotation is the identity, the tip is where X, Y, Z put it
+    (XYZAC_SIM, (1, 2, 3, 0, 0), (1, 2, 3), (0, 0, 1)),
+    # A = -30 deg: y = cA (Y - dy) - con sA (Z - dz) + dy = -17.3205 + 5 + 20;
+    # z = con sA (Y - dy) + cA (Z - dz) + dz = -10 - 8.6603 + 10
+    (XYZAC_SIM, (0, 0, 0, -30, 0), (0, 20 - 20 * S3 + 5, -10 * S3), (0, -0.5, S3)),
+    # A = -90, C = 90 deg: x = -sC (Z - dz) + sC dy = -20 + 20; y = con sC X = -10;
+    # z = con sA (Y - dy) + dz = -15 + 10
+    (XYZAC_SIM, (10, 5, 30, -90, 90), (0, -10, -5), (-1, 0, 0)),
+    # conventional directions, tool offset 5 (LinuxCNC's dz = 10 + 5): its z = -20 + 15 = -5
+    # is the controlled point, the tip is 5 below: -10; y = -(Z - dz) + dy = 15 + 20
+    (XYZACTrunnion(0, 0, 0, 20, 10, 5, 1, 1), (0, 0, 0, 90, 0), (0, 35, -10), (0, -1, 0)),
+    # xyzbcKinematicsForward by hand (con = -1, dx -20, dz -15), B = -30 deg:
+    # x = cB (X - dx) + con sB (Z - dz) + dx = 17.3205 + 7.5 - 20;
+    # z = -con sB (X - dx) + cB (Z - dz) + dz = -10 + 12.9904 - 15
+    (XYZBC_SIM, (0, 0, 0, -30, 0), (20 * S3 + 7.5 - 20, 0, -10 + 15 * S3 - 15), (0.5, 0, S3)),
+    # B = -90, C = 90 deg: x = -con sC Y = 5; y = sC sB (Z - dz) + con sC dx = -45 + 20;
+    # z = -con sB (X - dx) + dz = -30 - 15
+    (XYZBC_SIM, (10, 5, 30, -90, 90), (5, -25, -45), (0, -1, 0)),
+    # spec section 1 (zhang2013, L_ac 100, L_ty 300) at A = 90 deg, C = 0:
+    # Px = -X; Py = -Z + L_ty; Pz = -Y - L_ac
+    (KIN, (1, 2, 3, 90, 0), (-1, 297, -102), (0, -1, 0)),
+])
+def test_forward_matches_published_equations_by_hand(kin, q_deg, P, O):
+    q = np.array(q_deg, dtype=float)
+    q[3:] = np.radians(q[3:])
+    P_kin, O_kin = kin.forward(q)
+    np.testing.assert_allclose(P_kin, P, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(O_kin, O, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(kin.linear_axes(P, q[3], q[4]), q[:3], rtol=0, atol=1e-12)
+
+
+poses = st.tuples(st.floats(-300, 300, **finite), st.floats(-300, 300, **finite),
+                  st.floats(-300, 300, **finite), st.floats(-3.0, 3.0, **finite),
+                  st.floats(-20, 20, **finite))
+
+
+@KINEMATICS_PARAMS
+@settings(max_examples=150, deadline=None)
+@given(q=poses)
+def test_tool_axis_is_dP_dZ(kin, q):
+    # O is the direction in which the spindle axis Z moves the tip (spec section 1); P is
+    # affine in Z, so a unit step of Z moves the tip by exactly O
+    q = np.array(q)
+    P, O = kin.forward(q)
+    P_up, _ = kin.forward(q + [0, 0, 1.0, 0, 0])
+    np.testing.assert_allclose(P_up - P, O, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(O), 1.0, atol=1e-15)
+    np.testing.assert_allclose(kin.orientation(q), O, rtol=0, atol=0)
+    np.testing.assert_allclose(kin.orientation(q[3], q[4]), O, rtol=0, atol=0)
+
+
+@KINEMATICS_PARAMS
+@settings(max_examples=150, deadline=None)
+@given(q=poses)
+def test_linear_axes_and_inverse_undo_forward(kin, q):
+    q = np.array(q)
+    P, O = kin.forward(q)
+    np.testing.assert_allclose(kin.linear_axes(P, q[3], q[4]), q[:3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(kin.linear_axes(P, q[3:]), q[:3], rtol=0, atol=1e-9)
+    lower, upper = kin.tilt_limits
+    inside = (lower is None or lower <= q[3]) and (upper is None or q[3] <= upper)
+    if inside and abs(np.sin(q[3])) > 1e-6:   # off the pole, (A, C) is unique up to branch
+        np.testing.assert_allclose(kin.inverse(P, O, c_near=np.array(q[4])), q, atol=1e-8)
+
+
+@KINEMATICS_PARAMS
+@settings(max_examples=150, deadline=None)
+@given(P=st.tuples(*[st.floats(-300, 300, **finite)] * 3),
+       O=st.tuples(*[st.floats(-1, 1, **finite)] * 3).filter(lambda v: np.linalg.norm(v) > 0.1))
+def test_inverse_then_forward_reproduces_the_pose(kin, P, O):
+    P = np.array(P)
+    O = np.array(O) / np.linalg.norm(O)
+    q = kin.inverse(P, O)
+    P2, O2 = kin.forward(q)
+    np.testing.assert_allclose(P2, P, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(O2, O, atol=2 * POLE_TOLERANCE + 1e-15, rtol=0)
+    lower, upper = kin.tilt_limits
+    if lower is not None and O[2] > np.cos(min(-lower, upper)):  # inside the travel both ways
+        assert lower <= q[3] <= upper
+
+
+@KINEMATICS_PARAMS
+def test_orientation_jacobian_matches_central_differences(kin):
+    rng = np.random.default_rng(5)
+    A, C = rng.uniform(-3, 3, 50), rng.uniform(-7, 7, 50)
+    h = 1e-6
+    jac = kin.orientation_jacobian(A, C)
+    d_a = (kin.orientation(A + h, C) - kin.orientation(A - h, C)) / (2 * h)
+    d_c = (kin.orientation(A, C + h) - kin.orientation(A, C - h)) / (2 * h)
+    np.testing.assert_allclose(jac[..., 0], d_a, atol=1e-9)
+    np.testing.assert_allclose(jac[..., 1], d_c, atol=1e-9)
+
+
+@pytest.mark.parametrize("kin", [XYZAC_SIM, XYZBC_SIM], ids=["xyzac", "xyzbc"])
+def test_tilt_sign_keeps_the_path_inside_the_travel(kin):
+    limited = kin.with_tilt_limits(np.radians(-100), np.radians(50))
+    assert limited.tilt_limits == (np.radians(-100), np.radians(50))
+    # a cone of tool axes 60 deg from vertical: only the negative commanded tilt fits the
+    # -100..50 deg travel; with no travel limits the positive one is taken
+    c = np.linspace(0, 2 * np.pi, 200)
+    tilt = np.radians(60)
+    O = np.stack([np.sin(tilt) * np.cos(c), np.sin(tilt) * np.sin(c), np.full_like(c, 0.5)], 1)
+    P = np.zeros_like(O)
+    np.testing.assert_allclose(limited.inverse(P, O)[:, 3], -tilt, atol=1e-12)
+    np.testing.assert_allclose(kin.inverse(P, O)[:, 3], tilt, atol=1e-12)
+    # a swing exactly through the pole from 60 deg on one side to 60 deg on the other: the
+    # continuous branch would reach +60 deg, so C turns by pi at the pole instead and the
+    # tilt stays negative
+    theta = np.radians(60) * np.linspace(-1, 1, 201)
+    O = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
+    q = limited.inverse(np.zeros_like(O), O)
+    assert np.all(q[:, 3] <= 1e-12) and q[:, 3].min() == pytest.approx(-np.radians(60))
+    assert abs(q[-1, 4] - q[0, 4]) == pytest.approx(np.pi, abs=1e-12)
+    np.testing.assert_allclose(limited.forward(q)[1], O, atol=1e-12)
+    assert np.ptp(kin.inverse(np.zeros_like(O), O)[:, 4]) < 1e-12   # free: tilt crosses zero
+
+
+def test_only_negative_tilt_allowed():
+    kin = XYZAC_SIM.with_tilt_limits(np.radians(-100), 0.0)
+    c = np.linspace(0, 6 * np.pi, 500)
+    O = np.stack([0.5 * np.sin(c), 0.5 * np.cos(c), np.full_like(c, S3)], axis=1)
+    q = kin.inverse(np.zeros_like(O), O)
+    np.testing.assert_allclose(q[:, 3], -np.radians(30), atol=1e-12)
+    assert np.abs(np.diff(q[:, 4])).max() < 0.05            # unwrapped over three turns
+    np.testing.assert_allclose(kin.forward(q)[1], O, atol=1e-12)
+
+
+def test_rotary_pair_rejects_other_shapes():
+    with pytest.raises(ValueError, match="shape"):
+        XYZAC_SIM.orientation(np.zeros((4, 3)))

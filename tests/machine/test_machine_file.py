@@ -95,3 +95,96 @@ def test_unstable_controller_is_rejected(tmp_path):
     m = load_machine(path)
     with pytest.raises(UnsupportedControllerError, match=r"axis X: closed loop is not stable"):
         m.controller("pid-high").error_models(m.drives)
+
+
+@pytest.mark.parametrize("name, kin_type, axis_names", [
+    ("linuxcnc-xyzac-trt", "XYZACTrunnion", ("X", "Y", "Z", "A", "C")),
+    ("linuxcnc-xyzbc-trt", "XYZBCTrunnion", ("X", "Y", "Z", "B", "C")),
+])
+def test_linuxcnc_builtin_machines(name, kin_type, axis_names):
+    machine = load_machine(name)
+    zhang = load_machine("zhang2013")
+    assert type(machine.kinematics).__name__ == kin_type
+    assert machine.axis_names == axis_names == machine.kinematics.axis_names
+    assert tuple(d.axis for d in machine.drives) == axis_names
+    # the sim .ini's [JOINT_n] limits, degrees to rad
+    tilt = machine.drive(axis_names[3])
+    assert tilt is machine.drives[3] and tilt.is_rotary
+    assert (tilt.p_min, tilt.p_max) == (np.radians(-100), np.radians(50))
+    assert machine.kinematics.tilt_limits == (np.radians(-100), np.radians(50))
+    assert (tilt.v_max, tilt.a_max) == (np.radians(30), np.radians(300))
+    x = machine.drive("X")
+    assert (x.p_min, x.p_max, x.v_max, x.a_max, x.j_max) == (-200, 200, 20, 300, 12000)
+    assert (machine.drive("Y").p_max, machine.drive("Z").p_max) == (100, 120)
+    assert machine.drive("C").p_max == pytest.approx(np.radians(36000), rel=1e-15)
+    # drives and controllers are zhang2013's
+    for ours, theirs in zip(machine.drives, zhang.drives):
+        assert (ours.ka, ours.kt, ours.rg, ours.J, ours.B, ours.friction) == \
+            (theirs.ka, theirs.kt, theirs.rg, theirs.J, theirs.B, theirs.friction)
+    assert set(machine.controllers) == set(zhang.controllers)
+    for model, reference in zip(machine.controller("pid-high").error_models(machine.drives),
+                                zhang.controller("pid-high").error_models(zhang.drives)):
+        np.testing.assert_array_equal(model.den, reference.den)
+
+
+def test_sim_geometry_values():
+    ac = load_machine("linuxcnc-xyzac-trt").kinematics
+    assert (ac.y_offset, ac.z_offset, ac.tool_offset, ac.a_direction, ac.c_direction) == \
+        (20, 10, 0, -1, -1)
+    bc = load_machine("linuxcnc-xyzbc-trt").kinematics
+    assert (bc.x_offset, bc.z_offset, bc.tool_offset, bc.b_direction, bc.c_direction) == \
+        (-20, -15, 0, -1, -1)
+
+
+@pytest.mark.parametrize("machine_name, old, new, pattern", [
+    ("linuxcnc-xyzac-trt", 'type = "xyzac-trt"', 'type = "xyzac-trunnion"',
+     r"\[kinematics\] type: unknown value 'xyzac-trunnion'; choose one of ac-trunnion, "
+     r"xyzac-trt, xyzbc-trt"),
+    ("linuxcnc-xyzac-trt", "y_offset = 20.0\n", "", r"\[kinematics\] y_offset: missing key"),
+    ("linuxcnc-xyzac-trt", "y_offset = 20.0", "y_ofset = 20.0",
+     r"\[kinematics\] (y_ofset: unknown key|y_offset: missing key)"),
+    ("linuxcnc-xyzac-trt", "y_offset = 20.0", "y_offset = 20.0\nx_offset = 1.0",
+     r"\[kinematics\] x_offset: unknown key"),
+    ("linuxcnc-xyzac-trt", "a_direction = -1", "a_direction = 0",
+     r"\[kinematics\] a_direction: must be \+1 or -1"),
+    ("linuxcnc-xyzac-trt", 'tool_offset = 0.0', 'tool_offset = "long"',
+     r"\[kinematics\] tool_offset: must be a number"),
+    ("linuxcnc-xyzbc-trt", "x_offset = -20.0\n", "", r"\[kinematics\] x_offset: missing key"),
+    ("linuxcnc-xyzbc-trt", "c_direction = -1\n", "",
+     r"\[kinematics\] c_direction: missing key"),
+    ("linuxcnc-xyzbc-trt", "\n[drives.B]\n", "\n[drives.A]\n", r"\[drives\] B: missing key"),
+    ("linuxcnc-xyzbc-trt", "B = { kp = 736.64", "A = { kp = 736.64",
+     r"\[controllers.pid-high\] B: missing key"),
+    ("linuxcnc-xyzac-trt", "p_max = 200", "p_max = -300",
+     r"\[drives.X\] p_max: must be > p_min \(-200\), got -300"),
+])
+def test_trunnion_machine_file_errors(tmp_path, machine_name, old, new, pattern):
+    path = tmp_path / "trt.toml"
+    path.write_text(_edit(builtin_machine_text(machine_name), old, new))
+    with pytest.raises(MachineFileError, match=pattern) as info:
+        load_machine(path)
+    assert str(info.value).startswith(str(path))
+    assert "\n" not in str(info.value).strip()
+
+
+@pytest.mark.parametrize("name, tilt_deg, c_deg", [
+    # ranges of LinuxCNC's table-rotary-tilting demo programs (TCP mode, degrees):
+    ("linuxcnc-xyzac-trt", (-74.49, 0.0), (-399.805, 0.0)),      # impeller-7bl-xyzac.ngc
+    ("linuxcnc-xyzac-trt", (-75.001, 0.0), (-154.392, 270.0)),   # boat-xyzac.ngc
+    ("linuxcnc-xyzbc-trt", (-75.001, 0.0), (-64.392, 360.0)),    # boat-xyzbc.ngc
+])
+def test_linuxcnc_demo_programs_fit_the_travel(name, tilt_deg, c_deg):
+    machine = load_machine(name)
+    tilt, c = machine.drives[3], machine.drives[4]
+    assert tilt.p_min < np.radians(tilt_deg[0]) and np.radians(tilt_deg[1]) < tilt.p_max
+    assert c.p_min < np.radians(c_deg[0]) and np.radians(c_deg[1]) < c.p_max
+    # the programs' tool tips span about x -50..50, y -45..45, z -14..40 mm in the workpiece
+    # frame: every corner of that box at every tilt and turn of the programs stays inside
+    # the linear travel
+    corners = np.array(np.meshgrid([-50, 50], [-45, 45], [-14, 40])).reshape(3, -1).T
+    rotary = np.radians(np.array(np.meshgrid(np.linspace(*tilt_deg, 16),
+                                             np.linspace(-180, 180, 37))).reshape(2, -1).T)
+    xyz = machine.kinematics.linear_axes(corners[:, None, :], rotary[None, :, 0],
+                                         rotary[None, :, 1])
+    for i, drive in enumerate(machine.drives[:3]):
+        assert drive.p_min < xyz[..., i].min() and xyz[..., i].max() < drive.p_max

@@ -251,21 +251,28 @@ def test_apt_text_statement_ending_in_dollar_is_not_a_continuation(tmp_path):
 
 
 def test_gcode_fixture(machine):
+    # blade_finish.nc is blade_finish.cls in zhang2013 machine axes
+    # (scripts/make_blade_finish_nc.py); the first block by hand: the tool is along z, so C
+    # takes the 90 deg of the tilted points after it (their O lies in the x-z plane,
+    # C = atan2(Oi, -Oj)), X = -Py = 5, Y = Px = 10, Z = Pz + L_ac + L_ty = 440
     report = read_gcode_report(DATA / "blade_finish.nc", machine)
     deg = np.radians
-    expected_q = [[0, 0, 150, 0, 0], [0, 0, 120, 0, 0], [0, 0, 100, 0, 0],
-                  [10.5, -2.25, 100, 0, 0], [10.5, -2.25, 100, deg(5), deg(10)],
-                  [12.75, -1.5, 99.5, deg(10), deg(20)], [12.75, -0.75, 99.5, deg(10), deg(20)],
-                  [15, -0.75, 99.5, deg(15), deg(30)], [15, -0.75, 150, deg(15), deg(30)]]
-    np.testing.assert_allclose(report.axes, expected_q, rtol=0, atol=1e-14)
-    P, O = machine.kinematics.forward(np.asarray(expected_q))
+    np.testing.assert_allclose(report.axes[0], [5, 10, 440, 0, deg(90)], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(report.axes[:, 3], deg([0, 0, 10, 20, 30, 40, 40]), atol=1e-14)
+    np.testing.assert_allclose(report.axes[:, 4], deg(90), rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(report.axes[:, 0], [5, 5, 4, 3, 2, 1, 1])   # X = -Py
+    P, O = machine.kinematics.forward(report.axes)
     np.testing.assert_allclose(report.toolpath.P, P, rtol=0, atol=1e-12)
     np.testing.assert_allclose(report.toolpath.O, O, rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(report.lines, [7, 8, 9, 10, 11, 12, 14, 15, 17])
-    np.testing.assert_array_equal(report.rapid, [1, 1, 0, 0, 0, 0, 0, 0, 1])
-    np.testing.assert_array_equal(report.toolpath.feed,
-                                  [np.nan, np.nan, 10, 10, 20, 20, 20, 20, np.nan])
-    assert report.n_duplicates == 1  # N120 repeats N110
+    # the same tool path as the CL data, to the 4 decimals written
+    cl = quiet(read_apt, DATA / "blade_finish.cls")
+    np.testing.assert_allclose(report.toolpath.P, cl.P, rtol=0, atol=2e-4)
+    np.testing.assert_allclose(report.toolpath.O, cl.O, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(report.lines, [7, 9, 10, 11, 12, 14, 16])
+    np.testing.assert_array_equal(report.rapid, [1, 0, 0, 0, 0, 0, 1])
+    np.testing.assert_array_equal(report.toolpath.feed, cl.feed)
+    np.testing.assert_array_equal(report.toolpath.feed, [np.nan, 20, 20, 20, 15, 15, np.nan])
+    assert report.n_duplicates == 1  # n110 repeats N100
     assert report.skipped["/"] == 1 and report.skipped["M30"] == 1
     assert report.skipped["G43"] == 1 and report.skipped["S"] == 1
 

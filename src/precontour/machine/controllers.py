@@ -7,7 +7,8 @@ predictor, while the nonlinear adaptive sliding-mode controller (``smc``) is onl
 (:mod:`precontour.simulation.control_laws`). :func:`design_p_pi` and :func:`design_smc` reproduce the
 gains shipped with the built-in machine.
 
-Machine-file keys and units (per axis; "mm" reads "rad" on the rotary axes A and C):
+Machine-file keys and units (per axis, named as the machine's axes: X Y Z A C, or X Y Z B C on a
+B-C machine; "mm" reads "rad" on the rotary axes):
 
 ====== ======= =================================================================
 type   key     meaning, unit
@@ -207,14 +208,15 @@ class _PerAxisParser:
         self.gains_cls = gains_cls
         self.linear = hasattr(gains_cls, "error_model")
 
-    def __call__(self, name: str, table: ConfigTable) -> Controller:
+    def __call__(self, name: str, table: ConfigTable,
+                 axis_names: tuple[str, ...] = AXES) -> Controller:
         kind = table.get_str("type")
-        axes = tuple(self.gains_cls.from_table(table.get_table(axis)) for axis in AXES)
+        axes = tuple(self.gains_cls.from_table(table.get_table(axis)) for axis in axis_names)
         table.finish()
         return Controller(name=name, type=kind, axes=axes)
 
 
-CONTROLLER_TYPES: dict[str, Callable[[str, ConfigTable], Controller]] = {
+CONTROLLER_TYPES: dict[str, Callable[..., Controller]] = {
     "pid": _PerAxisParser(PIDGains),
     "p-pi": _PerAxisParser(PPIGains),
     "smc": _PerAxisParser(SMCGains),

@@ -55,7 +55,7 @@ class Drive:
     Attributes
     ----------
     axis : str
-        Axis name, one of ``X Y Z A C``.
+        Axis name, one of ``X Y Z A C`` (``B`` in slot 3 on a B-C machine).
     ka : float
         Current amplifier gain, A/V.
     kt : float
@@ -71,6 +71,9 @@ class Drive:
     v_max, a_max, j_max : float or None
         Axis velocity, acceleration and jerk limits (mm or rad, per s, s^2, s^3) for
         trajectory generation.
+    p_min, p_max : float or None
+        Axis travel (position limits, mm or rad); on the tilt axis (slot 3) also the range
+        inverse kinematics chooses the tilt sign within.
     """
 
     axis: str
@@ -83,6 +86,8 @@ class Drive:
     v_max: float | None = None
     a_max: float | None = None
     j_max: float | None = None
+    p_min: float | None = None
+    p_max: float | None = None
 
     @property
     def gain(self) -> float:
@@ -91,7 +96,7 @@ class Drive:
 
     @property
     def is_rotary(self) -> bool:
-        return self.axis in ROTARY_AXES
+        return self.axis not in LINEAR_AXES
 
 
 @dataclass(frozen=True)

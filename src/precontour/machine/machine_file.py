@@ -1,10 +1,14 @@
 """Machine descriptions: load a TOML file (or a built-in machine) into frozen dataclasses.
 
 A machine file has a ``[kinematics]`` table (``type`` picks a module of
-:mod:`precontour.machine.kinematics`), one ``[drives.<axis>]`` table per axis X Y Z A C with an
-optional ``friction`` table, and named ``[controllers.<name>]`` tables whose ``type`` picks a
-parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`. Every value is checked; unknown and
-missing keys are errors naming the file, table and key. Units: mm, rad, s; drive parameters SI.
+:mod:`precontour.machine.kinematics`), one ``[drives.<axis>]`` table per axis of the machine
+(X Y Z A C, or X Y Z B C on a B-C machine: the kinematics' ``axis_names``) with an optional
+``friction`` table and optional travel ``p_min``/``p_max``, and named ``[controllers.<name>]``
+tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`.
+The tilt drive's travel (slot 3) bounds the tilt sign that inverse kinematics picks, unless
+the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``). Every value is
+checked; unknown and missing keys are errors naming the file, table and key. Units: mm, rad,
+s; drive parameters SI.
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ from .drives import AXES, Drive, Friction
 from ..errors import MachineFileError
 from .kinematics import KINEMATICS_TYPES
 
-BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013",)
+#: Built-in machines: the paper's, and LinuxCNC's two trunnion-table simulator configurations
+#: (``configs/sim/axis/vismach/5axis/table-rotary-tilting``).
+BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt")
 
 
 @dataclass(frozen=True)
@@ -45,8 +51,16 @@ class Machine:
                 f"unknown controller {name!r}; this machine has {', '.join(self.controllers)}",
                 source=self.source) from None
 
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        """The five axis letters in q order: ("X", "Y", "Z", "A", "C"), or B in slot 3 on a
+        B-C machine (for G-code; trajectory columns stay X,Y,Z,A,C)."""
+        return tuple(getattr(self.kinematics, "axis_names", AXES))
+
     def drive(self, axis: str) -> Drive:
-        return self.drives[AXES.index(axis)]
+        """The drive of axis ``axis`` (a letter of :attr:`axis_names`, or of ``AXES``)."""
+        names = self.axis_names
+        return self.drives[names.index(axis) if axis in names else AXES.index(axis)]
 
 
 def load_machine(spec: str | Path) -> Machine:
@@ -90,17 +104,21 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     kin_type = kin_table.get_str("type", choices=tuple(KINEMATICS_TYPES))
     kinematics = KINEMATICS_TYPES[kin_type](kin_table)
     kin_table.finish()
+    axis_names = tuple(getattr(kinematics, "axis_names", AXES))
 
     drives_table = top.get_table("drives")
-    drives = tuple(_parse_drive(axis, drives_table.get_table(axis)) for axis in AXES)
+    drives = tuple(_parse_drive(axis, drives_table.get_table(axis)) for axis in axis_names)
     drives_table.finish()
+    tilt = drives[3]
+    if hasattr(kinematics, "with_tilt_limits"):
+        kinematics = kinematics.with_tilt_limits(tilt.p_min, tilt.p_max)
 
     controllers_table = top.get_table("controllers")
     controllers: dict[str, Controller] = {}
     for ctrl_name in controllers_table.keys():
         table = controllers_table.get_table(ctrl_name)
         kind = table.get_str("type", choices=tuple(CONTROLLER_TYPES))
-        controllers[ctrl_name] = CONTROLLER_TYPES[kind](ctrl_name, table)
+        controllers[ctrl_name] = CONTROLLER_TYPES[kind](ctrl_name, table, axis_names)
     controllers_table.finish()
     if not controllers:
         raise controllers_table.error(None, "a machine needs at least one controller")
@@ -126,7 +144,11 @@ def _parse_drive(axis: str, table: ConfigTable) -> Drive:
         v_max=table.get_float("v_max", required=False, above=0.0),
         a_max=table.get_float("a_max", required=False, above=0.0),
         j_max=table.get_float("j_max", required=False, above=0.0),
+        p_min=table.get_float("p_min", required=False),
+        p_max=table.get_float("p_max", required=False),
     )
+    if drive.p_min is not None and drive.p_max is not None and not drive.p_min < drive.p_max:
+        raise table.error("p_max", f"must be > p_min ({drive.p_min:g}), got {drive.p_max:g}")
     table.finish()
     return drive
 

@@ -2,8 +2,9 @@
 
 Each path is a closed-form tool tip P(u) (mm, workpiece frame) and orientation O(u) for
 u in [0, 1], sampled at ``n_points`` equally spaced u. Orientations given by tilt A and turn
-C angles use the machine-independent convention O = (sin A sin C, sin A cos C, cos A) (which
-is also the A-C trunnion's, so A and C below are what the zhang2013 machine commands).
+C angles use the A-C trunnion's convention O = (sin A sin C, -sin A cos C, cos A) (spec
+section 1), so A and C below are what the zhang2013 machine commands; ``cone`` and ``fan``
+are defined by their geometry in the workpiece frame.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ BUILTIN_PATHS: tuple[str, ...] = ("paper", "circle", "cone", "fan")
 
 
 def _orientation(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    return np.stack([np.sin(A) * np.sin(C), np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
+    return np.stack([np.sin(A) * np.sin(C), -np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
 
 
 def paper_path(n_points: int = 500) -> ToolPath:
@@ -49,8 +50,8 @@ def circle_path(n_points: int = 400, *, radius: float = 50.0, tilt: float = 0.5,
     """A circle test in the spirit of ISO 230-4, run with simultaneous rotary motion.
 
     The tool tip goes once round a horizontal circle of ``radius`` (mm, default 50) about
-    the C axis while the tool leans out of the circle with a varying tilt, so the table
-    turns a full revolution and tilts back and forth::
+    the C axis while the tool leans back along the circle, against the direction of travel,
+    with a varying tilt, so the table turns a full revolution and tilts back and forth::
 
         phi = 2 pi u,  P = (radius cos phi, radius sin phi, 0)
         A = tilt + tilt_amplitude sin(2 phi),  C = phi     (rad; defaults 0.5 and 0.25)

@@ -1,8 +1,15 @@
 """Five-axis machine kinematics, one module per machine type, picked by name.
 
 Each type registers a factory in :data:`KINEMATICS_TYPES` that takes the machine file's
-``[kinematics]`` table and returns an object with vectorized ``inverse(P, O)`` (tool tip and
-orientation in the workpiece frame to axis positions q = [X, Y, Z, A, C]) and ``forward(q)``.
+``[kinematics]`` table and returns an object with ``axis_names`` (slot 3 is A or B) and
+vectorized ``inverse(P, O)`` (tool tip and orientation in the workpiece frame to axis
+positions q = [X, Y, Z, A, C]), ``forward(q)``, ``orientation(q)`` (or ``orientation(A, C)``),
+``orientation_jacobian(A, C)`` and ``linear_axes(P, A, C)`` (the tool-centre-point map). The
+tool orientation is always O = dP/dZ, the direction in which the spindle axis moves the tip.
+
+- ``ac-trunnion`` (:mod:`.ac_trunnion`): Zhang et al.'s A-C trunnion, offsets L_ac, L_ty;
+- ``xyzac-trt`` (:mod:`.xyzac_trt`): A-C trunnion with LinuxCNC xyzac-trt-kins's offsets;
+- ``xyzbc-trt`` (:mod:`.xyzbc_trt`): B-C trunnion with LinuxCNC xyzbc-trt-kins's offsets.
 """
 
 from __future__ import annotations
@@ -13,6 +20,8 @@ import numpy as np
 
 from ...errors import InputError
 from .ac_trunnion import ACTrunnion
+from .xyzac_trt import XYZACTrunnion
+from .xyzbc_trt import XYZBCTrunnion
 
 #: Tolerance on | |O| - 1 | below which orientations are normalized (with a warning) instead
 #: of being rejected.
@@ -20,10 +29,12 @@ UNIT_TOLERANCE = 1e-6
 
 KINEMATICS_TYPES = {
     "ac-trunnion": ACTrunnion.from_table,
+    "xyzac-trt": XYZACTrunnion.from_table,
+    "xyzbc-trt": XYZBCTrunnion.from_table,
 }
 
-__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "angle_between",
-           "normalize_orientations"]
+__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "XYZACTrunnion", "XYZBCTrunnion",
+           "angle_between", "normalize_orientations"]
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
