@@ -1,0 +1,296 @@
+"""Timing an NC program as a CNC executes it: :func:`program_trajectory`.
+
+The program (:class:`~precontour.toolpath.program.Program`) is a chain of linear moves in
+machine axes (arcs already cut into chords); each has a programmed time (G93: 60/F; G94:
+length / F) or, for a rapid, none. The time law is built the way FIR-interpolating CNCs do it
+(Tajima & Sencer; LinuxCNC's and most look-aheads produce the same kind of motion):
+
+1. **Segments.** The program splits at rapids and stops into segments that start and end at
+   rest. Consecutive rapids form one segment; so do consecutive feed moves.
+2. **Nominal motion.** Within a segment each move takes its programmed time, or longer where
+   an axis would exceed its velocity limit (rapids: as fast as the slowest axis allows, i.e.
+   the machine's rapid rate within its axis limits). The nominal axis commands move at constant
+   speed along each block -- linearly in the axes, or, for a TCP move, linearly in the tool tip
+   and the rotary axes with the linear axes from the kinematics -- and are sampled at the servo
+   period.
+3. **Jerk limiting.** Two moving averages in time, of lengths T1 and T2, filter each axis: the
+   velocity steps between blocks become ramps, so |a| <= dv/T1 and |j| <= dv/(T1 T2) for a
+   velocity step dv. T1 and T2 are the shortest the segment's largest step allows on every
+   axis: T1 = max(dv_i/a_i, sqrt(dv_i/j_i)), T2 = max(dv_i/j_i)/T1. Averaging never raises a
+   velocity, so velocity limits hold.
+4. **Check and slow down.** Every sample is checked against each axis's velocity, acceleration
+   and jerk limit (finite differences at the servo period, rest before and after the
+   segment). Where a limit is exceeded (velocity steps adding up within T1, or a TCP move
+   whose linear axes speed up mid-block), the blocks feeding that sample are slowed by the
+   ratio, and the segment is filtered again.
+
+**Corners between linear blocks** are blended by the filters, as a CNC blends within a
+tolerance: the corner point is replaced by a curve that passes within |dv| (T1 + T2)/8 of it
+(dv the velocity step at the corner). **Block times are kept**: every block runs in its
+programmed time (unless a limit forces it slower), and the whole segment lasts the sum of its
+block times plus T1 + T2 (the filters' start-up and run-out), because a moving average shifts
+the motion by half its length and does not stretch it.
+
+The reference tool path P, O is the direct kinematics of the filtered axis commands: the
+interpolated program path as the machine is told to move, rapids included.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import PrecontourError
+from .feedplan import CHECK_RTOL, axis_limits
+from .generate import DEFAULT_DWELL
+from .sampled import Trajectory
+
+#: The plan aims this fraction below each axis limit; the check uses the full limits.
+MARGIN = 0.98
+#: Planning passes per segment before giving up.
+MAX_PASSES = 30
+#: Largest number of samples a program's trajectory may have (memory guard: 5 * 10^7 samples
+#: are about 14 hours at 1 kHz and 9 GB of arrays).
+MAX_SAMPLES = 50_000_000
+
+__all__ = ["program_trajectory", "MARGIN", "MAX_SAMPLES"]
+
+
+def program_trajectory(program, machine, *, ts: float | None = None,
+                       dwell: float = DEFAULT_DWELL,
+                       max_samples: int = MAX_SAMPLES) -> Trajectory:
+    """Axis commands at the servo period that execute ``program`` on ``machine``.
+
+    Parameters
+    ----------
+    program : Program
+        From :func:`precontour.toolpath.read_program`.
+    machine : Machine
+        Kinematics (``forward``) and drive limits ``v_max``, ``a_max``, ``j_max`` (a rapid
+        needs ``v_max`` on the axes it moves).
+    ts : float, optional
+        Sampling period, s (default: the machine's servo period).
+    dwell : float
+        Seconds the axes are held at rest at a program stop (M0, M1, M6) and at the end, so
+        that the drives settle inside the trajectory; G4 holds its own time.
+    max_samples : int
+        Refuse programs whose trajectory would be longer (memory guard).
+
+    Returns
+    -------
+    Trajectory
+        ``t`` from 0 at step ``ts``; ``q`` the filtered axis commands; ``P``, ``O`` their
+        direct kinematics; ``line`` the source line of the block executing at each sample
+        (the block whose nominal motion the filter window is centred on; a stop's line while
+        it holds).
+
+    Raises
+    ------
+    PrecontourError
+        A rapid on an axis without a velocity limit, a trajectory longer than
+        ``max_samples``, or limits that could not be met (naming the program line).
+    """
+    ts = float(machine.servo_period if ts is None else ts)
+    if not (math.isfinite(ts) and ts > 0):
+        raise ValueError(f"ts must be positive and finite, got {ts!r}")
+    if not (math.isfinite(dwell) and dwell >= 0):
+        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    limits = np.stack(axis_limits(machine))          # (3, 5): v, a, j
+    points = program.points
+    dq = np.diff(points, axis=0)
+    durations = _nominal_durations(program, dq, limits[0])
+
+    n_moves = program.n_moves
+    holds = _holds(program, dwell, ts)
+    bounds = _segment_bounds(program)
+    estimate = (durations.sum() + sum(h for _, h, _ in holds) * ts) / ts + len(bounds) * 50
+    if not estimate <= max_samples:
+        raise PrecontourError(f"{program.source}: the program's trajectory would have about "
+                              f"{estimate:.3g} samples at ts = {ts:g} s, more than "
+                              f"{max_samples}; raise ts or split the program")
+
+    context = _Context(program, machine.kinematics, points, dq, limits, ts)
+    pieces_q, pieces_line = [np.asarray(points[:1])], [np.array([program.start_line])]
+    hold_at = {}
+    for index, n_hold, line in holds:
+        hold_at.setdefault(index, []).append((n_hold, line))
+
+    def hold(index):
+        for n_hold, line in hold_at.get(index, ()):
+            if n_hold:
+                pieces_q.append(np.repeat(pieces_q[-1][-1:], n_hold, axis=0))
+                pieces_line.append(np.full(n_hold, line, dtype=np.int64))
+
+    hold(0)
+    for k0, k1 in bounds:
+        q_seg, line_seg = context.segment(k0, k1, durations[k0:k1].copy())
+        # The first sample is the previous one, at rest; two more samples at rest after the
+        # segment keep the jerk of one segment's stop and the next one's start apart (each
+        # was checked against rest on its own).
+        pieces_q.append(np.concatenate([q_seg[1:], np.repeat(q_seg[-1:], 2, axis=0)]))
+        pieces_line.append(np.concatenate([line_seg[1:], np.repeat(line_seg[-1:], 2)]))
+        hold(k1)
+    q = np.concatenate(pieces_q)
+    line = np.concatenate(pieces_line)
+    P, O = machine.kinematics.forward(q)
+    t = np.arange(q.shape[0]) * ts
+    return Trajectory(t=t, q=q, P=P, O=O, line=line)
+
+
+def _nominal_durations(program, dq, v_max):
+    """Each move's time before jerk limiting: programmed, or longer where an axis would
+    exceed its velocity limit; a rapid as fast as its slowest axis allows."""
+    moving = dq != 0.0
+    rapid = program.rapid
+    unlimited = moving & ~np.isfinite(v_max)
+    bad = rapid & unlimited.any(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        axis = program.axes[int(np.flatnonzero(unlimited[k])[0])]
+        raise PrecontourError(f"{program.source}, line {program.line[k]}: a rapid (G0) "
+                              f"moves axis {axis}, which has no velocity limit v_max in the "
+                              "machine file (the rapid rate)")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        by_limit = np.where(moving, np.abs(dq) / (MARGIN * v_max), 0.0).max(axis=1)
+    programmed = np.where(rapid, 0.0, np.nan_to_num(program.duration, nan=0.0))
+    return np.maximum(programmed, by_limit)
+
+
+def _holds(program, dwell, ts):
+    """(move index, samples to hold, line) for every stop, and the final dwell."""
+    holds = []
+    for stop in program.stops:
+        seconds = stop.seconds if stop.kind == "dwell" else dwell
+        holds.append((stop.index, int(round(seconds / ts)), stop.line))
+    ends_with_hold = any(s.index == program.n_moves and s.kind != "dwell"
+                         for s in program.stops)
+    if not ends_with_hold:
+        holds.append((program.n_moves, int(round(dwell / ts)), int(program.line[-1])))
+    return holds
+
+
+def _segment_bounds(program):
+    """(first move, end move) of each segment: split where rapid and feed moves meet and at
+    every stop."""
+    n = program.n_moves
+    split = np.zeros(n + 1, dtype=bool)
+    split[0] = split[n] = True
+    split[1:n] |= program.rapid[1:] != program.rapid[:-1]
+    for stop in program.stops:
+        split[stop.index] = True
+    edges = np.flatnonzero(split)
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+class _Context:
+    """What every segment needs: the program's moves, the kinematics and the limits."""
+
+    def __init__(self, program, kinematics, points, dq, limits, ts):
+        self.program, self.kinematics = program, kinematics
+        self.points, self.dq, self.limits, self.ts = points, dq, limits, ts
+        self.tcp = program.tcp_move
+        self.tips = None
+        if self.tcp.any():
+            self.tips, _ = kinematics.forward(points)
+
+    def nominal(self, k0, k1, durations, n):
+        """Nominal axis commands at n + 1 samples j*ts over the segment, and the move each
+        sample is in."""
+        ts = self.ts
+        ends = np.cumsum(durations)
+        tau = np.arange(n + 1) * ts
+        k = np.minimum(np.searchsorted(ends, tau, side="right"), k1 - k0 - 1)
+        begin = ends[k] - durations[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.where(durations[k] > 0, (tau - begin) / durations[k], 1.0)
+        u = np.clip(u, 0.0, 1.0)
+        move = k + k0
+        q = self.points[move] + u[:, None] * self.dq[move]
+        tcp = self.tcp[move]
+        if tcp.any():
+            from ..toolpath.gcode import linear_axes
+            P0, P1 = self.tips[move[tcp]], self.tips[move[tcp] + 1]
+            tip = P0 + u[tcp, None] * (P1 - P0)
+            q[tcp, :3] = linear_axes(self.kinematics, tip, q[tcp, 3:])
+        q[-1] = self.points[k1]
+        return q, move
+
+    def segment(self, k0, k1, durations):
+        """Filtered commands and line numbers of moves k0..k1-1, from rest to rest."""
+        ts = self.ts
+        v_lim, a_lim, j_lim = self.limits * MARGIN
+        total = durations.sum()
+        if total <= 0.0:  # nothing moves (zero-length rapids)
+            return (np.repeat(self.points[k1][None], 2, axis=0),
+                    np.full(2, self.program.line[k1 - 1]))
+        velocity = self.dq[k0:k1] / np.where(durations > 0, durations, np.inf)[:, None]
+        padded = np.concatenate([np.zeros((1, 5)), velocity, np.zeros((1, 5))])
+        step = np.abs(np.diff(padded, axis=0)).max(axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = max(np.nanmax(np.where(step > 0, step / a_lim, 0.0)),
+                     np.nanmax(np.where(step > 0, np.sqrt(step / j_lim), 0.0)))
+            t2 = np.nanmax(np.where(step > 0, step / j_lim, 0.0)) / t1 if t1 > 0 else 0.0
+        n1 = max(1, math.ceil(t1 / ts - 1e-9))
+        n2 = max(1, math.ceil(t2 / ts - 1e-9))
+        lines = self.program.line
+        for _ in range(MAX_PASSES):
+            total = durations.sum()
+            n = max(1, math.ceil(total / ts - 1e-9))
+            # stretch to a whole number of samples (never faster than planned)
+            scaled = durations * (n * ts / total)
+            q_nom, move = self.nominal(k0, k1, scaled, n)
+            q = _box(_box(q_nom, n1, n1 + n2 - 2), n2, 0)
+            ratio, worst = _violations(q, ts, self.limits)
+            if worst <= 1.0 + CHECK_RTOL:
+                lag = (n1 + n2 - 2) // 2
+                at = np.clip(np.arange(q.shape[0]) - lag, 0, n)
+                return q, lines[move[at]]
+            # slow down every move whose nominal motion feeds an offending sample
+            reach = n1 + n2
+            bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
+            lo = move[np.clip(bad - reach - 1, 0, n)] - k0
+            hi = move[np.clip(bad + 2, 0, n)] - k0
+            factor = np.ones(k1 - k0)
+            runs = np.flatnonzero(np.diff(bad) > 1)
+            starts = np.concatenate([[0], runs + 1])
+            stops = np.concatenate([runs + 1, [bad.size]])
+            for a, b in zip(starts.tolist(), stops.tolist()):
+                f = ratio[bad[a:b]].max() / MARGIN
+                seg = slice(int(lo[a:b].min()), int(hi[a:b].max()) + 1)
+                factor[seg] = np.maximum(factor[seg], f)
+            durations = durations * factor
+        raise PrecontourError(f"{self.program.source}, line {lines[k0]}: the axis limits "
+                              f"could not be met after {MAX_PASSES} passes (worst ratio "
+                              f"{worst:.6g})")
+
+
+def _box(x, n, pad):
+    """Moving average of ``n`` samples along axis 0 of ``x`` padded with ``pad`` copies of
+    its first and last rows ('valid' part: length len(x) + 2 pad - n + 1)."""
+    if pad:
+        x = np.concatenate([np.repeat(x[:1], pad, axis=0), x, np.repeat(x[-1:], pad, axis=0)])
+    if n == 1:
+        return x
+    # running sums relative to the first row keep the round-off at the motion's own scale
+    c = np.cumsum(x - x[0], axis=0)
+    c = np.concatenate([np.zeros((1, x.shape[1])), c])
+    return (c[n:] - c[:-n]) / n + x[0]
+
+
+def _violations(q, ts, limits):
+    """Per sample, the largest ratio of an axis derivative (orders 1-3, finite differences,
+    at rest before and after) to its limit; and the overall worst."""
+    ext = np.concatenate([np.repeat(q[:1], 3, axis=0), q, np.repeat(q[-1:], 3, axis=0)])
+    ratio = np.zeros(q.shape[0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for order in (1, 2, 3):
+            d = np.abs(np.diff(ext, order, axis=0)) / ts**order / limits[order - 1]
+            d = np.nan_to_num(d, nan=0.0).max(axis=1)
+            # difference i spans ext samples i..i+order, i.e. q samples i-3..i+order-3
+            for shift in range(order + 1):
+                first = 3 - shift           # difference feeding q sample 0
+                lo, hi = max(0, -first), min(q.shape[0], d.size - first)
+                if hi > lo:
+                    np.maximum(ratio[lo:hi], d[lo + first:hi + first], out=ratio[lo:hi])
+    return ratio, float(ratio.max(initial=0.0))
