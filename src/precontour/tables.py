@@ -102,7 +102,7 @@ def read_trajectory(path: str | Path, *, min_samples: int = 4) -> Trajectory:
         whole = (values == np.round(values)) & (np.abs(values) < 2.0**53)
         if not whole.all():
             row = int(np.flatnonzero(~whole)[0])
-            raise InputError(f"line number is not a whole number ({values[row]!r})",
+            raise InputError(f"line number is not a whole number ({float(values[row])!r})",
                              source=source, row=row + 1, field=LINE_COLUMN)
         line = values.astype(np.int64)
     return Trajectory(t=columns["t"], q=q, P=P, O=O, line=line)

@@ -161,6 +161,8 @@ def _holds(program, dwell, ts):
     """(move index, samples to hold, line) for every stop, and the final dwell."""
     holds = []
     for stop in program.stops:
+        if stop.index == 0 and stop.line < program.start_line:
+            continue  # before the start (e.g. the first tool change): not part of the motion
         seconds = stop.seconds if stop.kind == "dwell" else dwell
         holds.append((stop.index, int(round(seconds / ts)), stop.line))
     ends_with_hold = any(s.index == program.n_moves and s.kind != "dwell"
