@@ -197,25 +197,23 @@ class _Context:
             self.tips, _ = kinematics.forward(points)
 
     def nominal(self, k0, k1, durations, n):
-        """Nominal axis commands at n + 1 samples j*ts over the segment, and the move each
-        sample is in."""
-        ts = self.ts
-        ends = np.cumsum(durations)
-        tau = np.arange(n + 1) * ts
-        k = np.minimum(np.searchsorted(ends, tau, side="right"), k1 - k0 - 1)
-        begin = ends[k] - durations[k]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(durations[k] > 0, (tau - begin) / durations[k], 1.0)
-        u = np.clip(u, 0.0, 1.0)
-        move = k + k0
-        q = self.points[move] + u[:, None] * self.dq[move]
+        """Nominal axis commands at n + 1 samples j*ts over the segment, axis-major (5, n + 1)
+        so that every per-axis pass runs over contiguous memory, and the move each sample is
+        in."""
+        node_t = np.concatenate([[0.0], np.cumsum(durations)])
+        tau = np.arange(n + 1) * self.ts
+        nodes = self.points[k0:k1 + 1]
+        q = np.empty((5, n + 1))
+        for i in range(5):
+            q[i] = np.interp(tau, node_t, nodes[:, i])
+        move = np.searchsorted(node_t[1:-1], tau, side="right") + k0
         tcp = self.tcp[move]
         if tcp.any():
             from ..toolpath.gcode import linear_axes
-            P0, P1 = self.tips[move[tcp]], self.tips[move[tcp] + 1]
-            tip = P0 + u[tcp, None] * (P1 - P0)
-            q[tcp, :3] = linear_axes(self.kinematics, tip, q[tcp, 3:])
-        q[-1] = self.points[k1]
+            tips = self.tips[k0:k1 + 1]
+            tip = np.stack([np.interp(tau[tcp], node_t, tips[:, i]) for i in range(3)], axis=1)
+            q[:3, tcp] = linear_axes(self.kinematics, tip, q[3:, tcp].T).T
+        q[:, -1] = self.points[k1]
         return q, move
 
     def segment(self, k0, k1, durations):
@@ -246,8 +244,8 @@ class _Context:
             ratio, worst = _violations(q, ts, self.limits)
             if worst <= 1.0 + CHECK_RTOL:
                 lag = (n1 + n2 - 2) // 2
-                at = np.clip(np.arange(q.shape[0]) - lag, 0, n)
-                return q, lines[move[at]]
+                at = np.clip(np.arange(q.shape[1]) - lag, 0, n)
+                return q.T, lines[move[at]]
             # slow down every move whose nominal motion feeds an offending sample
             reach = n1 + n2
             bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
@@ -268,31 +266,37 @@ class _Context:
 
 
 def _box(x, n, pad):
-    """Moving average of ``n`` samples along axis 0 of ``x`` padded with ``pad`` copies of
-    its first and last rows ('valid' part: length len(x) + 2 pad - n + 1)."""
+    """Moving average of ``n`` samples along axis 1 of ``x`` (axes, samples) padded with
+    ``pad`` copies of its first and last samples ('valid' part: x.shape[1] + 2 pad - n + 1
+    samples)."""
     if pad:
-        x = np.concatenate([np.repeat(x[:1], pad, axis=0), x, np.repeat(x[-1:], pad, axis=0)])
+        x = np.concatenate([np.repeat(x[:, :1], pad, axis=1), x,
+                            np.repeat(x[:, -1:], pad, axis=1)], axis=1)
     if n == 1:
         return x
-    # running sums relative to the first row keep the round-off at the motion's own scale
-    c = np.cumsum(x - x[0], axis=0)
-    c = np.concatenate([np.zeros((1, x.shape[1])), c])
-    return (c[n:] - c[:-n]) / n + x[0]
+    # running sums relative to the first sample keep the round-off at the motion's own scale
+    first = x[:, :1]
+    c = np.zeros((x.shape[0], x.shape[1] + 1))
+    np.cumsum(x - first, axis=1, out=c[:, 1:])
+    return (c[:, n:] - c[:, :-n]) * (1.0 / n) + first
 
 
 def _violations(q, ts, limits):
-    """Per sample, the largest ratio of an axis derivative (orders 1-3, finite differences,
-    at rest before and after) to its limit; and the overall worst."""
-    ext = np.concatenate([np.repeat(q[:1], 3, axis=0), q, np.repeat(q[-1:], 3, axis=0)])
-    ratio = np.zeros(q.shape[0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for order in (1, 2, 3):
-            d = np.abs(np.diff(ext, order, axis=0)) / ts**order / limits[order - 1]
-            d = np.nan_to_num(d, nan=0.0).max(axis=1)
-            # difference i spans ext samples i..i+order, i.e. q samples i-3..i+order-3
-            for shift in range(order + 1):
-                first = 3 - shift           # difference feeding q sample 0
-                lo, hi = max(0, -first), min(q.shape[0], d.size - first)
-                if hi > lo:
-                    np.maximum(ratio[lo:hi], d[lo + first:hi + first], out=ratio[lo:hi])
+    """Per sample of ``q`` (axes, samples), the largest ratio of an axis derivative (orders
+    1-3, finite differences, at rest before and after) to its limit; and the overall worst."""
+    ext = np.concatenate([np.repeat(q[:, :1], 3, axis=1), q, np.repeat(q[:, -1:], 3, axis=1)],
+                         axis=1)
+    n = q.shape[1]
+    ratio = np.zeros(n)
+    d = ext
+    for order in (1, 2, 3):
+        d = np.diff(d, axis=1)
+        scaled = np.abs(d) * (1.0 / (ts**order * limits[order - 1]))[:, None]
+        r = np.maximum.reduce(scaled, axis=0)
+        # difference i spans ext samples i..i+order, i.e. q samples i-3..i+order-3
+        for shift in range(order + 1):
+            first = 3 - shift           # difference feeding q sample 0
+            lo, hi = max(0, -first), min(n, r.size - first)
+            if hi > lo:
+                np.maximum(ratio[lo:hi], r[lo + first:hi + first], out=ratio[lo:hi])
     return ratio, float(ratio.max(initial=0.0))
