@@ -441,3 +441,30 @@ def test_arbitrary_bytes_raise_only_precontour_errors(machine, tmp_path, data):
         read_program(path, machine)
     except PrecontourError:
         pass
+
+
+@pytest.mark.parametrize("modes", ["G90 G21 G94", "G91 G20 G94", "G90 G93", "G91 G21 G93"])
+def test_plain_blocks_read_like_the_general_path(machine, tmp_path, modes):
+    """Plain motion blocks are executed together, vectorized; the same blocks with their
+    words in another order (which takes the word-by-word path) give the same program."""
+    rng = np.random.default_rng(len(modes))
+    inverse = "G93" in modes
+    lines = ["G0 X1 Y2 Z3 A4 C5", modes]
+    for k in range(300):
+        names = [a for a in "XYZAC" if rng.random() < 0.6] or ["Z"]
+        words = [f"{a}{rng.uniform(-3, 3):+.4f}" for a in names]
+        if inverse or rng.random() < 0.2:
+            words.append(f"F{rng.uniform(10, 900):.2f}")
+        code = ["", "G1", "G01", "G0", "G00"][rng.integers(5)] if k else "G1"
+        if k == 0 and not inverse:
+            words.append("F500")
+        lines.append(f"N{k} {code} " + " ".join(words))
+    fast = read(tmp_path, machine, "\n".join(lines))
+    shuffled = [lines[0], lines[1]] + [" ".join(reversed(line.split())) for line in lines[2:]]
+    slow = read(tmp_path, machine, "\n".join(shuffled))
+    assert fast.n_moves == slow.n_moves > 250
+    for name in ("rapid", "line", "tcp_move"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-12)  # G91 sums in another order
+    np.testing.assert_allclose(fast.duration, slow.duration, rtol=1e-13)
+    np.testing.assert_allclose(fast.feed, slow.feed, rtol=1e-13)
