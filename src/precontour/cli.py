@@ -28,7 +28,7 @@ from .tables import read_trajectory, trajectory_columns, write_columns
 from .toolpath import read_program, read_toolpath, toolpath_format
 from .prediction.tracking import predict_tracking
 from .trajectory.generate import DEFAULT_DWELL, generate_trajectory, summarize
-from .trajectory.program import program_trajectory
+from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
 
 EXIT_USAGE = 2
 
@@ -96,6 +96,12 @@ def build_parser() -> argparse.ArgumentParser:
                             help="hold the final position (and, for G-code, each M0/M1/M6 "
                                  "stop) this long so the drives settle inside the trajectory "
                                  f"(default {DEFAULT_DWELL:g} s)")
+    trajectory.add_argument("--corner-tol", type=_positive_float, default=DEFAULT_TOLERANCE,
+                            metavar="MM",
+                            help="G-code: largest distance by which the blend of a corner "
+                                 "between two blocks may pass the programmed corner; sharper "
+                                 "corners are slowed for, or stopped at "
+                                 f"(default {DEFAULT_TOLERANCE:g} mm)")
     trajectory.add_argument("--tcp", action="store_true",
                             help="G-code: the whole program is in tool centre point mode (X Y Z "
                                  "the tool tip, A C the rotary axes), for controllers that "
@@ -273,7 +279,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
         program = read_program(args.toolpath, machine, tcp=args.tcp)
         for notice in program.notices:
             print(f"precontour: {notice}", file=sys.stderr)
-        traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell)
+        traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
+                                  tolerance=args.corner_tol)
         toolpath = None
     else:
         if args.tcp:

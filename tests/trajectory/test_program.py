@@ -181,3 +181,34 @@ def test_cli_trajectory_of_a_program(tmp_path, capsys):
     csv.write_text("Px,Py,Pz,Oi,Oj,Ok\n0,0,0,0,0,1\n1,0,0,0,0,1\n")
     assert main(["trajectory", str(csv), "--tcp", "-o", str(out2)]) == 2
     assert "--tcp applies to G-code programs only" in capsys.readouterr().err
+
+
+def _distance_to_polyline(x, points):
+    d = np.full(len(x), np.inf)
+    for a, b in zip(points[:-1], points[1:]):
+        ab = b - a
+        u = np.clip(((x - a) @ ab) / (ab @ ab), 0, 1)
+        d = np.minimum(d, np.linalg.norm(x - (a + u[:, None] * ab), axis=1))
+    return d
+
+
+def test_corners_blend_within_the_tolerance(machine, tmp_path):
+    # corners of 90, 104, 22, 157 and 170 degrees at 50 mm/s, then small zig-zags at 10 mm/s
+    text = ("G0 X0 Y0 Z0 A0 C0\nG1 X20 F3000\nY20\nX40 Y25\nX60 Y20\nX0 Y0 Z5\n"
+            "X1 Y0.1 F600\nX2 Y0\nX3 Y0.1\n")
+    program = program_of(tmp_path, machine, text)
+    points = program.points[:, :3]
+    free = program_trajectory(program, machine, tolerance=None)
+    free_deviation = _distance_to_polyline(free.q[:, :3], points).max()
+    assert free_deviation > 0.1
+    for tolerance in (0.1, 0.03, 0.001):
+        traj = program_trajectory(program, machine, tolerance=tolerance)
+        deviation = _distance_to_polyline(traj.q[:, :3], points).max()
+        assert deviation <= tolerance
+        assert summarize(traj, machine).within_limits
+        # no slower than stopping at every corner would be
+        assert traj.duration < free.duration + 9 * 0.2
+    # a sharp corner within a tight tolerance is a stop: the path passes through it
+    traj = program_trajectory(program, machine, tolerance=0.001)
+    corner = np.linalg.norm(traj.q[:, :3] - [20, 0, 0], axis=1)
+    assert corner.min() < 1e-9

@@ -25,10 +25,15 @@ length / F) or, for a rapid, none. The time law is built the way FIR-interpolati
    ratio, and the segment is filtered again.
 
 **Corners between linear blocks** are blended by the filters, as a CNC blends within a
-tolerance: the corner point is replaced by a curve that passes within |dv| (T1 + T2)/8 of it
-(dv the velocity step at the corner). **Block times are kept**: every block runs in its
-programmed time (unless a limit forces it slower), and the whole segment lasts the sum of its
-block times plus T1 + T2 (the filters' start-up and run-out), because a moving average shifts
+tolerance (G64 P): a velocity step dv at a corner displaces the path by at most dv * r across
+each leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
+(T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (default
+:data:`DEFAULT_TOLERANCE`), the two blocks are slowed near the corner (long blocks are cut one
+filter window from each end, so that only their ends slow down); where it would take a
+slow-down below :data:`SHARP_CORNER` of the speed, the axes stop at the corner instead, which
+costs less time (about one filter window) and passes through it exactly. **Block times are
+kept** otherwise: every block runs in its programmed time, and a segment lasts the sum of its
+block times plus T1 + T2 (the filters' start-up and run-out), because a moving average delays
 the motion by half its length and does not stretch it.
 
 The reference tool path P, O is the direct kinematics of the filtered axis commands: the
@@ -48,17 +53,22 @@ from .sampled import Trajectory
 
 #: The plan aims this fraction below each axis limit; the check uses the full limits.
 MARGIN = 0.98
+#: Default corner tolerance, mm: the blend of a corner passes within this of it.
+DEFAULT_TOLERANCE = 0.01
+#: A corner whose blend would need the speed cut below this fraction is a stop instead.
+SHARP_CORNER = 0.5
 #: Planning passes per segment before giving up.
 MAX_PASSES = 30
 #: Largest number of samples a program's trajectory may have (memory guard: 5 * 10^7 samples
 #: are about 14 hours at 1 kHz and 9 GB of arrays).
 MAX_SAMPLES = 50_000_000
 
-__all__ = ["program_trajectory", "MARGIN", "MAX_SAMPLES"]
+__all__ = ["program_trajectory", "DEFAULT_TOLERANCE", "MARGIN", "MAX_SAMPLES"]
 
 
 def program_trajectory(program, machine, *, ts: float | None = None,
                        dwell: float = DEFAULT_DWELL,
+                       tolerance: float | None = DEFAULT_TOLERANCE,
                        max_samples: int = MAX_SAMPLES) -> Trajectory:
     """Axis commands at the servo period that execute ``program`` on ``machine``.
 
@@ -74,6 +84,10 @@ def program_trajectory(program, machine, *, ts: float | None = None,
     dwell : float
         Seconds the axes are held at rest at a program stop (M0, M1, M6) and at the end, so
         that the drives settle inside the trajectory; G4 holds its own time.
+    tolerance : float or None
+        Largest distance, mm, by which the blend of a corner between two blocks may pass
+        the programmed corner (estimated at the tool tip); ``None``: blend as the limits
+        allow, never slowing for a corner.
     max_samples : int
         Refuse programs whose trajectory would be longer (memory guard).
 
@@ -110,7 +124,9 @@ def program_trajectory(program, machine, *, ts: float | None = None,
                               f"{estimate:.3g} samples at ts = {ts:g} s, more than "
                               f"{max_samples}; raise ts or split the program")
 
-    context = _Context(program, machine.kinematics, points, dq, limits, ts)
+    if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be positive and finite (or None), got {tolerance!r}")
+    context = _Context(program, machine.kinematics, points, dq, limits, ts, tolerance)
     pieces_q, pieces_line = [np.asarray(points[:1])], [np.array([program.start_line])]
     hold_at = {}
     for index, n_hold, line in holds:
@@ -188,42 +204,17 @@ def _segment_bounds(program):
 class _Context:
     """What every segment needs: the program's moves, the kinematics and the limits."""
 
-    def __init__(self, program, kinematics, points, dq, limits, ts):
+    def __init__(self, program, kinematics, points, dq, limits, ts, tolerance):
         self.program, self.kinematics = program, kinematics
         self.points, self.dq, self.limits, self.ts = points, dq, limits, ts
+        self.tolerance = tolerance
         self.tcp = program.tcp_move
-        self.tips = None
-        if self.tcp.any():
-            self.tips, _ = kinematics.forward(points)
+        self.tips, _ = kinematics.forward(points)
 
-    def nominal(self, k0, k1, durations, n):
-        """Nominal axis commands at n + 1 samples j*ts over the segment, axis-major (5, n + 1)
-        so that every per-axis pass runs over contiguous memory, and the move each sample is
-        in."""
-        node_t = np.concatenate([[0.0], np.cumsum(durations)])
-        tau = np.arange(n + 1) * self.ts
-        nodes = self.points[k0:k1 + 1]
-        q = np.empty((5, n + 1))
-        for i in range(5):
-            q[i] = np.interp(tau, node_t, nodes[:, i])
-        move = np.searchsorted(node_t[1:-1], tau, side="right") + k0
-        tcp = self.tcp[move]
-        if tcp.any():
-            from ..toolpath.gcode import linear_axes
-            tips = self.tips[k0:k1 + 1]
-            tip = np.stack([np.interp(tau[tcp], node_t, tips[:, i]) for i in range(3)], axis=1)
-            q[:3, tcp] = linear_axes(self.kinematics, tip, q[3:, tcp].T).T
-        q[:, -1] = self.points[k1]
-        return q, move
-
-    def segment(self, k0, k1, durations):
-        """Filtered commands and line numbers of moves k0..k1-1, from rest to rest."""
-        ts = self.ts
+    def filter_lengths(self, k0, k1, durations):
+        """Samples n1, n2 of the two moving averages: the shortest that keep the segment's
+        largest velocity step within every axis's acceleration and jerk limit."""
         v_lim, a_lim, j_lim = self.limits * MARGIN
-        total = durations.sum()
-        if total <= 0.0:  # nothing moves (zero-length rapids)
-            return (np.repeat(self.points[k1][None], 2, axis=0),
-                    np.full(2, self.program.line[k1 - 1]))
         velocity = self.dq[k0:k1] / np.where(durations > 0, durations, np.inf)[:, None]
         padded = np.concatenate([np.zeros((1, 5)), velocity, np.zeros((1, 5))])
         step = np.abs(np.diff(padded, axis=0)).max(axis=0)
@@ -231,27 +222,139 @@ class _Context:
             t1 = max(np.nanmax(np.where(step > 0, step / a_lim, 0.0)),
                      np.nanmax(np.where(step > 0, np.sqrt(step / j_lim), 0.0)))
             t2 = np.nanmax(np.where(step > 0, step / j_lim, 0.0)) / t1 if t1 > 0 else 0.0
-        n1 = max(1, math.ceil(t1 / ts - 1e-9))
-        n2 = max(1, math.ceil(t2 / ts - 1e-9))
-        lines = self.program.line
+        return (max(1, math.ceil(t1 / self.ts - 1e-9)),
+                max(1, math.ceil(t2 / self.ts - 1e-9)))
+
+    def pieces(self, k0, k1, durations, window):
+        """Cut every move longer than three filter windows at one window from each end, so
+        that a slow-down at a corner stays near the corner. Returns the pieces' durations,
+        their move, and the nodes (axes, tool tip) at their ends, start node first."""
+        long = durations > 3.0 * window
+        count = np.where(long, 3, 1)
+        move = np.repeat(np.arange(k0, k1), count)
+        first = np.cumsum(count) - count
+        u_end = np.ones(move.size)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            edge = window / durations[long]
+        u_end[first[long]] = edge
+        u_end[first[long] + 1] = 1.0 - edge
+        u_start = np.zeros(move.size)
+        inner = np.ones(move.size, dtype=bool)
+        inner[first] = False
+        u_start[inner] = u_end[np.flatnonzero(inner) - 1]
+        piece_durations = (u_end - u_start) * durations[move - k0]
+        node_q = self.points[move] + u_end[:, None] * self.dq[move]
+        node_tip = self.tips[move] + u_end[:, None] * (self.tips[move + 1] - self.tips[move])
+        cut = u_end < 1.0
+        tcp = self.tcp[move]
+        if (cut & tcp).any():
+            from ..toolpath.gcode import linear_axes
+            k = cut & tcp
+            node_q[k, :3] = linear_axes(self.kinematics, node_tip[k], node_q[k, 3:])
+        if (cut & ~tcp).any():
+            k = cut & ~tcp
+            node_tip[k] = self.kinematics.forward(node_q[k])[0]
+        node_q = np.concatenate([self.points[k0:k0 + 1], node_q])
+        node_tip = np.concatenate([self.tips[k0:k0 + 1], node_tip])
+        return piece_durations, move, node_q, node_tip
+
+    def corner_factors(self, durations, node_path, reach):
+        """Per corner between consecutive pieces, the speed factor (<= 1) that keeps its blend
+        within the tolerance. The moving averages displace a corner by dv * reach (dv the
+        velocity step, reach = integral of tau h(tau) over tau > 0 for their combined kernel
+        h), so the blend leaves each leg by at most ``reach`` times the part of dv across
+        that leg; a speed change along a straight line leaves the path alone.
+        ``node_path`` is the tool tip (TCP pieces) or the linear axes (the others) at the
+        pieces' ends."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            velocity = np.diff(node_path, axis=0) / durations[:, None]
+        velocity[~(durations > 0)] = 0.0
+        speed = np.linalg.norm(velocity, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            direction = np.where(speed[:, None] > 0, velocity / speed[:, None], 0.0)
+        step = np.diff(velocity, axis=0)
+        across = np.zeros(step.shape[0])
+        for d in (direction[:-1], direction[1:]):
+            along = np.einsum("ij,ij->i", step, d)[:, None] * d
+            across = np.maximum(across, np.linalg.norm(step - along, axis=1))
+        with np.errstate(divide="ignore"):
+            return np.minimum(1.0, self.tolerance / (across * reach))
+
+    def blend_within_tolerance(self, durations, node_path, reach):
+        """Slow the pieces on both sides of each corner by its factor (a few rounds: slowing
+        one corner changes its neighbours' steps)."""
+        for _ in range(4):
+            factor = self.corner_factors(durations, node_path, reach)
+            if factor.min(initial=1.0) >= 1.0 - 1e-12:
+                break
+            slow = np.ones(durations.size)
+            slow[:-1] = factor
+            slow[1:] = np.minimum(slow[1:], factor)
+            durations = durations / slow
+        return durations
+
+    def nominal(self, node_t, node_q, node_tip, piece_tcp, n):
+        """Nominal axis commands at n + 1 samples j*ts over the segment, axis-major (5, n + 1)
+        so that every per-axis pass runs over contiguous memory, and the piece each sample is
+        in."""
+        tau = np.arange(n + 1) * self.ts
+        q = np.empty((5, n + 1))
+        for i in range(5):
+            q[i] = np.interp(tau, node_t, node_q[:, i])
+        piece = np.searchsorted(node_t[1:-1], tau, side="right")
+        tcp = piece_tcp[piece]
+        if tcp.any():
+            from ..toolpath.gcode import linear_axes
+            tip = np.stack([np.interp(tau[tcp], node_t, node_tip[:, i]) for i in range(3)],
+                           axis=1)
+            q[:3, tcp] = linear_axes(self.kinematics, tip, q[3:, tcp].T).T
+        q[:, -1] = node_q[-1]
+        return q, piece
+
+    def segment(self, k0, k1, durations):
+        """Filtered commands and line numbers of moves k0..k1-1, from rest to rest."""
+        ts = self.ts
+        if durations.sum() <= 0.0:  # nothing moves (zero-length rapids)
+            return (np.repeat(self.points[k1][None], 2, axis=0),
+                    np.full(2, self.program.line[k1 - 1]))
+        n1, n2 = self.filter_lengths(k0, k1, durations)
+        window = (n1 + n2) * ts
+        reach = _reach(n1, n2) * ts
+        durations, move, node_q, node_tip = self.pieces(k0, k1, durations, window)
+        piece_tcp = self.tcp[move]
+        if self.tolerance is not None:
+            # each piece's path in the frame it is interpolated in (its end node decides)
+            node_path = node_q[:, :3].copy()
+            tcp_nodes = np.concatenate([piece_tcp[:1], piece_tcp])
+            node_path[tcp_nodes] = node_tip[tcp_nodes]
+            factor = self.corner_factors(durations, node_path, reach)
+            sharp = np.flatnonzero(factor < SHARP_CORNER)
+            if sharp.size:
+                # Slowing down for a sharp corner costs more than stopping at it (about one
+                # filter window): the segment stops there, with no blend at all.
+                at = sorted({int(move[c]) + 1 for c in sharp} - {k0, k1})
+                if at:
+                    return self._split(k0, k1, at, durations, move)
+            durations = self.blend_within_tolerance(durations, node_path, reach)
+        lines = self.program.line[move]
         for _ in range(MAX_PASSES):
             total = durations.sum()
             n = max(1, math.ceil(total / ts - 1e-9))
             # stretch to a whole number of samples (never faster than planned)
-            scaled = durations * (n * ts / total)
-            q_nom, move = self.nominal(k0, k1, scaled, n)
+            node_t = np.concatenate([[0.0], np.cumsum(durations * (n * ts / total))])
+            q_nom, piece = self.nominal(node_t, node_q, node_tip, piece_tcp, n)
             q = _box(_box(q_nom, n1, n1 + n2 - 2), n2, 0)
             ratio, worst = _violations(q, ts, self.limits)
             if worst <= 1.0 + CHECK_RTOL:
                 lag = (n1 + n2 - 2) // 2
                 at = np.clip(np.arange(q.shape[1]) - lag, 0, n)
-                return q.T, lines[move[at]]
-            # slow down every move whose nominal motion feeds an offending sample
+                return q.T, lines[piece[at]]
+            # slow down every piece whose nominal motion feeds an offending sample
             reach = n1 + n2
             bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
-            lo = move[np.clip(bad - reach - 1, 0, n)] - k0
-            hi = move[np.clip(bad + 2, 0, n)] - k0
-            factor = np.ones(k1 - k0)
+            lo = piece[np.clip(bad - reach - 1, 0, n)]
+            hi = piece[np.clip(bad + 2, 0, n)]
+            factor = np.ones(durations.size)
             runs = np.flatnonzero(np.diff(bad) > 1)
             starts = np.concatenate([[0], runs + 1])
             stops = np.concatenate([runs + 1, [bad.size]])
@@ -260,9 +363,35 @@ class _Context:
                 seg = slice(int(lo[a:b].min()), int(hi[a:b].max()) + 1)
                 factor[seg] = np.maximum(factor[seg], f)
             durations = durations * factor
-        raise PrecontourError(f"{self.program.source}, line {lines[k0]}: the axis limits "
-                              f"could not be met after {MAX_PASSES} passes (worst ratio "
-                              f"{worst:.6g})")
+        raise PrecontourError(f"{self.program.source}, line {self.program.line[k0]}: the "
+                              f"axis limits could not be met after {MAX_PASSES} passes (worst "
+                              f"ratio {worst:.6g})")
+
+    def _split(self, k0, k1, at, durations, move):
+        """Segments k0..at[0], at[0]..at[1], ..., each from rest to rest, joined like the
+        program's own segments."""
+        per_move = np.zeros(k1 - k0)
+        np.add.at(per_move, move - k0, durations)  # the pieces' (programmed) times
+        edges = [k0, *at, k1]
+        parts_q, parts_line = [], []
+        for a, b in zip(edges[:-1], edges[1:]):
+            q, line = self.segment(a, b, per_move[a - k0:b - k0].copy())
+            if parts_q:
+                parts_q.append(np.repeat(parts_q[-1][-1:], 2, axis=0))
+                parts_line.append(np.repeat(parts_line[-1][-1:], 2))
+                q, line = q[1:], line[1:]
+            parts_q.append(q)
+            parts_line.append(line)
+        return np.concatenate(parts_q), np.concatenate(parts_line)
+
+
+
+def _reach(n1, n2):
+    """Integral of tau h(tau) over tau > 0, in samples, for the combined kernel h of moving
+    averages of n1 and n2 samples (centred): how far a velocity step displaces a corner."""
+    kernel = np.convolve(np.full(n1, 1.0 / n1), np.full(n2, 1.0 / n2))
+    tau = np.arange(kernel.size) - 0.5 * (kernel.size - 1)
+    return float(np.sum(np.where(tau > 0, tau * kernel, 0.0)))
 
 
 def _box(x, n, pad):
