@@ -87,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     trajectory.add_argument("--machine", default="zhang2013",
                             help="built-in machine name or machine TOML file (default: zhang2013)")
     trajectory.add_argument("--feed", type=_positive_float, default=DEFAULT_FEED, metavar="MM_S",
-                            help=f"maximum tool tip feed in mm/s (default {DEFAULT_FEED:g})")
+                            help=f"maximum tool tip feed in mm/s for CL data and built-in paths "
+                                 f"(default {DEFAULT_FEED:g}); a G-code program keeps its own")
     trajectory.add_argument("--ts", type=_positive_float, default=None, metavar="S",
                             help="sampling period in s (default: the machine's servo period)")
     trajectory.add_argument("--feed-units", choices=("mm/min", "mm/s"), default="mm/min",
