@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from precontour.cli import main
 from precontour.errors import PrecontourError
@@ -212,3 +214,39 @@ def test_corners_blend_within_the_tolerance(machine, tmp_path):
     traj = program_trajectory(program, machine, tolerance=0.001)
     corner = np.linalg.norm(traj.q[:, :3] - [20, 0, 0], axis=1)
     assert corner.min() < 1e-9
+
+
+def test_a_reversal_reaches_its_end_point_within_the_tolerance(machine, tmp_path):
+    program = program_of(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG1 X20 F3000\nX10\n")
+    for tolerance in (0.05, 0.01):
+        traj = program_trajectory(program, machine, tolerance=tolerance)
+        assert 20 - tolerance <= traj.q[:, 0].max() <= 20
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(st.lists(st.tuples(st.sampled_from(["G0", "G1", "G1", "G2", "G3", "G4"]),
+                          st.lists(st.floats(-30, 30, allow_nan=False), min_size=5,
+                                   max_size=5),
+                          st.floats(20, 5000)), min_size=1, max_size=12),
+       st.booleans())
+def test_random_programs_stay_within_the_limits(machine, tmp_path, blocks, tcp):
+    lines = ["G0 X0 Y0 Z0 A-20 C0", "G94"]
+    for code, (x, y, z, a, c), feed in blocks:
+        if code == "G4":
+            lines.append(f"G4 P{abs(x) / 100:.3f}")
+        elif code in ("G2", "G3"):
+            lines.append(f"{code} X{x:.3f} Y{y:.3f} Z{z:.3f} R{abs(a) + 40:.3f} F{feed:.1f}")
+        else:
+            lines.append(f"{code} X{x:.3f} Y{y:.3f} Z{z:.3f} A{a - 20:.3f} C{c * 3:.3f} "
+                         f"F{feed:.1f}")
+    path = tmp_path / "random.ngc"
+    path.write_text("\n".join(lines) + "\n")
+    try:
+        program = read_program(path, machine, tcp=tcp)
+    except PrecontourError:
+        return
+    traj = program_trajectory(program, machine, dwell=0.01)
+    assert summarize(traj, machine).within_limits
+    np.testing.assert_allclose(traj.q[-1], program.q[-1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(traj.q[0], program.start, rtol=0, atol=1e-12)

@@ -263,7 +263,9 @@ class _Context:
         within the tolerance. The moving averages displace a corner by dv * reach (dv the
         velocity step, reach = integral of tau h(tau) over tau > 0 for their combined kernel
         h), so the blend leaves each leg by at most ``reach`` times the part of dv across
-        that leg; a speed change along a straight line leaves the path alone.
+        that leg; a speed change along a straight line leaves the path alone. Where the path
+        turns back by more than a right angle, the blend also falls short of the corner
+        point, by up to ``reach`` times the whole step.
         ``node_path`` is the tool tip (TCP pieces) or the linear axes (the others) at the
         pieces' ends."""
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -277,6 +279,10 @@ class _Context:
         for d in (direction[:-1], direction[1:]):
             along = np.einsum("ij,ij->i", step, d)[:, None] * d
             across = np.maximum(across, np.linalg.norm(step - along, axis=1))
+        # Turning back by more than a right angle, the blend falls short of the corner point
+        # along the legs too (a full reversal: only along them): count the whole step.
+        back = np.einsum("ij,ij->i", direction[:-1], direction[1:]) < 0.0
+        across[back] = np.linalg.norm(step[back], axis=1)
         with np.errstate(divide="ignore"):
             return np.minimum(1.0, self.tolerance / (across * reach))
 
