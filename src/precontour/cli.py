@@ -100,9 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
     trajectory.add_argument("--corner-tol", type=_positive_float, default=DEFAULT_TOLERANCE,
                             metavar="MM",
                             help="G-code: largest distance by which the blend of a corner "
-                                 "between two blocks may pass the programmed corner; sharper "
-                                 "corners are slowed for, or stopped at "
-                                 f"(default {DEFAULT_TOLERANCE:g} mm)")
+                                 "between two blocks may leave the programmed path, where the "
+                                 "program sets none (G64 P, G61); sharper corners are slowed "
+                                 f"for, or stopped at (default {DEFAULT_TOLERANCE:g} mm)")
     trajectory.add_argument("--tcp", action="store_true",
                             help="G-code: the whole program is in tool centre point mode (X Y Z "
                                  "the tool tip, A C the rotary axes), for controllers that "

@@ -250,3 +250,19 @@ def test_random_programs_stay_within_the_limits(machine, tmp_path, blocks, tcp):
     assert summarize(traj, machine).within_limits
     np.testing.assert_allclose(traj.q[-1], program.q[-1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(traj.q[0], program.start, rtol=0, atol=1e-12)
+
+
+def test_program_path_tolerance_g64_p_and_g61(machine, tmp_path):
+    corners = "G1 X20 F3000\nY20\nX40 Y25\nX60 Y20\n"
+    loose = program_of(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG64 P0.1\n" + corners)
+    np.testing.assert_array_equal(loose.path_tolerance, 0.1)
+    traj = program_trajectory(loose, machine, tolerance=0.001)
+    deviation = _distance_to_polyline(traj.q[:, :3], loose.points[:, :3]).max()
+    assert 0.03 < deviation <= 0.1   # the program's G64 P, not the (tighter) default
+    exact = program_of(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG61\n" + corners + "G64\nX70\n")
+    np.testing.assert_array_equal(exact.path_tolerance, [0, 0, 0, 0, np.nan])
+    traj = program_trajectory(exact, machine, tolerance=None)
+    for corner in exact.points[1:4, :3]:   # G61: a stop at every corner
+        assert np.linalg.norm(traj.q[:, :3] - corner, axis=1).min() < 1e-9
+    inch = program_of(tmp_path, machine, "G20 G0 X0 Y0 Z0 A0 C0\nG64 P0.001\nG1 X1 F10\n")
+    np.testing.assert_allclose(inch.path_tolerance, [0.0254])

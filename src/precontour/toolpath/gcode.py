@@ -20,7 +20,8 @@ What is read, block by block with the usual modal state:
   not read);
 - kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
   G17-G19, G40, G43, G49, G54-G59 (identity offsets), G61, G64, G80; any other M code is kept
-  too, with a one-line notice (LinuxCNC programs switch TCP with remapped M428/M429).
+  too, with a one-line notice (LinuxCNC programs switch TCP with remapped M428/M429). G64 P
+  (path tolerance) and G61/G61.1 (exact path: 0) are also kept per move for the timing.
 
 Everything else -- subroutines and control flow (O-word sub/call/if/while, M98/M99, G65),
 macros and variables (``#``, ``[ ]``), G10, G28/G30, G53, G92, cutter compensation, canned
@@ -170,7 +171,8 @@ class _Reader:
         # one entry per move: programmed end (mm, deg), rapid, duration, feed, line, tcp
         # moves: single ones in lists, sealed into chunks of arrays (with the vectorized ones)
         self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
-        self.lines, self.tcp_moves = [], []
+        self.lines, self.tcp_moves, self.tolerances = [], [], []
+        self.path_tolerance = math.nan   # G64 P (mm); 0 after G61/G61.1; NaN: not given
         self.chunks = []
         self.n_moves = 0
         self.stops, self.passthrough, self.notices = [], [], []
@@ -425,6 +427,10 @@ class _Reader:
             self.arc_absolute = True
         if 911 in codes:
             self.arc_absolute = False
+        if 640 in codes:
+            self.path_tolerance = values["P"] * scale if "P" in values else math.nan
+        if 610 in codes or 611 in codes:
+            self.path_tolerance = 0.0
         for code in (170, 180, 190):
             if code in codes:
                 self.plane = _PLANES[code]
@@ -581,6 +587,7 @@ class _Reader:
         self.feeds.append(feed)
         self.lines.append(self.row)
         self.tcp_moves.append(self.tcp)
+        self.tolerances.append(self.path_tolerance)
         self.prog = list(target)
         self.n_moves += 1
 
@@ -592,9 +599,10 @@ class _Reader:
                                 np.array(self.duration, dtype=float),
                                 np.array(self.feeds, dtype=float),
                                 np.array(self.lines, dtype=np.int64),
-                                np.array(self.tcp_moves, dtype=bool)))
+                                np.array(self.tcp_moves, dtype=bool),
+                                np.array(self.tolerances, dtype=float)))
             self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
-            self.lines, self.tcp_moves = [], []
+            self.lines, self.tcp_moves, self.tolerances = [], [], []
 
     def add_many(self, ends, rapid, duration, feed, lines):
         """Append k moves at once (arrays of k rows; scalars are broadcast)."""
@@ -605,7 +613,7 @@ class _Reader:
                             np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
                             np.broadcast_to(np.asarray(feed, dtype=float), (k,)),
                             np.broadcast_to(np.asarray(lines, dtype=np.int64), (k,)),
-                            np.full(k, self.tcp)))
+                            np.full(k, self.tcp), np.full(k, self.path_tolerance)))
         self.prog = ends[-1].tolist()
         self.n_moves += k
 
@@ -692,8 +700,8 @@ class _Reader:
             raise ProgramError("no motion: no move after a block that sets all axes "
                                f"({' '.join(self.axes)})", source=self.source)
         self.seal()
-        ends, rapid, duration, feed, lines, tcp = (np.concatenate(parts)
-                                                   for parts in zip(*self.chunks))
+        ends, rapid, duration, feed, lines, tcp, tolerance = (np.concatenate(parts)
+                                                              for parts in zip(*self.chunks))
         q = self.machine_axes(ends, tcp)
         start = self.machine_axes(np.array([self.start]), np.array([self.start_tcp]))[0]
         bad = ~np.isfinite(q).all(axis=1)
@@ -706,7 +714,8 @@ class _Reader:
                        stops=tuple(self.stops), passthrough=tuple(self.passthrough),
                        source=self.source, tcp=bool(tcp.any() or self.tcp_all),
                        axes=self.axes, notices=tuple(self.notices),
-                       skipped=MappingProxyType(dict(self.skipped)))
+                       skipped=MappingProxyType(dict(self.skipped)),
+                       path_tolerance=tolerance)
 
 
 def _ffill(values: np.ndarray, initial: float) -> np.ndarray:

@@ -88,6 +88,9 @@ class Program:
         One-line notices for the user (unknown M codes kept as pass-through, axes taken as 0).
     skipped : Mapping[str, int]
         Codes and words read and not acted on, with counts (``{"M3": 1, "S": 1, "/": 2}``).
+    path_tolerance : ndarray, shape (M,)
+        Path tolerance in force at each move, mm: G64 P, 0 under G61/G61.1 (exact path), NaN
+        where the program gives none (the trajectory's default applies).
     """
 
     start: np.ndarray
@@ -105,11 +108,15 @@ class Program:
     axes: tuple[str, ...] = ("X", "Y", "Z", "A", "C")
     notices: tuple[str, ...] = ()
     skipped: Mapping[str, int] = field(default_factory=lambda: MappingProxyType({}))
+    path_tolerance: np.ndarray | None = None
 
     def __post_init__(self):
         m = np.asarray(self.q).reshape(-1, 5).shape[0]
+        if self.path_tolerance is None:
+            object.__setattr__(self, "path_tolerance", np.full(m, np.nan))
         for name, dtype in (("q", float), ("rapid", bool), ("duration", float),
-                            ("feed", float), ("line", np.int64), ("tcp_move", bool)):
+                            ("feed", float), ("line", np.int64), ("tcp_move", bool),
+                            ("path_tolerance", float)):
             value = np.asarray(getattr(self, name), dtype=dtype)
             value = value.reshape(m, 5) if name == "q" else value.reshape(m)
             value.setflags(write=False)

@@ -25,16 +25,17 @@ length / F) or, for a rapid, none. The time law is built the way FIR-interpolati
    ratio, and the segment is filtered again.
 
 **Corners between linear blocks** are blended by the filters, as a CNC blends within a
-tolerance (G64 P): a velocity step dv at a corner displaces the path by at most dv * r across
-each leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
-(T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (default
-:data:`DEFAULT_TOLERANCE`), the two blocks are slowed near the corner (long blocks are cut one
-filter window from each end, so that only their ends slow down); where it would take a
-slow-down below :data:`SHARP_CORNER` of the speed, the axes stop at the corner instead, which
-costs less time (about one filter window) and passes through it exactly. **Block times are
-kept** otherwise: every block runs in its programmed time, and a segment lasts the sum of its
-block times plus T1 + T2 (the filters' start-up and run-out), because a moving average delays
-the motion by half its length and does not stretch it.
+tolerance: a velocity step dv at a corner displaces the path by at most dv * r across each
+leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
+(T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (the program's
+G64 P; 0 under G61/G61.1; else ``tolerance``, default :data:`DEFAULT_TOLERANCE`), the two
+blocks are slowed near the corner (long blocks are cut one filter window from each end, so
+that only their ends slow down); where it would take a slow-down below :data:`SHARP_CORNER`
+of the speed, the axes stop at the corner instead, which costs less time (about one filter
+window) and passes through it exactly. **Block times are kept** otherwise: every block runs
+in its programmed time, and a segment lasts the sum of its block times plus T1 + T2 (the
+filters' start-up and run-out), because a moving average delays the motion by half its
+length and does not stretch it.
 
 The reference tool path P, O is the direct kinematics of the filtered axis commands: the
 interpolated program path as the machine is told to move, rapids included.
@@ -57,6 +58,8 @@ MARGIN = 0.98
 DEFAULT_TOLERANCE = 0.01
 #: A corner whose blend would need the speed cut below this fraction is a stop instead.
 SHARP_CORNER = 0.5
+#: Corner blends below this (mm) are round-off, not corners.
+BLEND_ROUND_OFF = 1e-9
 #: Planning passes per segment before giving up.
 MAX_PASSES = 30
 #: Largest number of samples a program's trajectory may have (memory guard: 5 * 10^7 samples
@@ -85,9 +88,11 @@ def program_trajectory(program, machine, *, ts: float | None = None,
         Seconds the axes are held at rest at a program stop (M0, M1, M6) and at the end, so
         that the drives settle inside the trajectory; G4 holds its own time.
     tolerance : float or None
-        Largest distance, mm, by which the blend of a corner between two blocks may pass
-        the programmed corner (estimated at the tool tip); ``None``: blend as the limits
-        allow, never slowing for a corner.
+        Largest distance, mm, by which the blend of a corner between two blocks may leave
+        the programmed path (at the tool tip for TCP blocks, in the linear axes otherwise),
+        where the program sets none; ``None``: blend as the limits allow there. The
+        program's own G64 P, and G61/G61.1 (exact path: stop at every corner), take
+        precedence.
     max_samples : int
         Refuse programs whose trajectory would be longer (memory guard).
 
@@ -207,7 +212,9 @@ class _Context:
     def __init__(self, program, kinematics, points, dq, limits, ts, tolerance):
         self.program, self.kinematics = program, kinematics
         self.points, self.dq, self.limits, self.ts = points, dq, limits, ts
-        self.tolerance = tolerance
+        default = math.inf if tolerance is None else tolerance
+        self.tolerance = np.where(np.isnan(program.path_tolerance), default,
+                                  program.path_tolerance)
         self.tcp = program.tcp_move
         self.tips, _ = kinematics.forward(points)
 
@@ -258,7 +265,7 @@ class _Context:
         node_tip = np.concatenate([self.tips[k0:k0 + 1], node_tip])
         return piece_durations, move, node_q, node_tip
 
-    def corner_factors(self, durations, node_path, reach):
+    def corner_factors(self, durations, node_path, reach, tolerance):
         """Per corner between consecutive pieces, the speed factor (<= 1) that keeps its blend
         within the tolerance. The moving averages displace a corner by dv * reach (dv the
         velocity step, reach = integral of tau h(tau) over tau > 0 for their combined kernel
@@ -283,14 +290,20 @@ class _Context:
         # along the legs too (a full reversal: only along them): count the whole step.
         back = np.einsum("ij,ij->i", direction[:-1], direction[1:]) < 0.0
         across[back] = np.linalg.norm(step[back], axis=1)
-        with np.errstate(divide="ignore"):
-            return np.minimum(1.0, self.tolerance / (across * reach))
+        blend = across * reach
+        # a leg at rest in this frame (e.g. a pure rotation) leaves nothing to blend; below a
+        # picometre the step across is round-off of a straight line cut into pieces
+        blend[(speed[:-1] == 0) | (speed[1:] == 0) | (blend < BLEND_ROUND_OFF)] = 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(blend > 0, np.minimum(1.0, tolerance / blend), 1.0)
 
-    def blend_within_tolerance(self, durations, node_path, reach):
+    def blend_within_tolerance(self, durations, node_path, reach, tolerance):
         """Slow the pieces on both sides of each corner by its factor (a few rounds: slowing
         one corner changes its neighbours' steps)."""
         for _ in range(4):
-            factor = self.corner_factors(durations, node_path, reach)
+            # a corner that cannot be a stop (the segment's own ends) slows at most this much
+            factor = np.maximum(self.corner_factors(durations, node_path, reach, tolerance),
+                                SHARP_CORNER)
             if factor.min(initial=1.0) >= 1.0 - 1e-12:
                 break
             slow = np.ones(durations.size)
@@ -328,12 +341,15 @@ class _Context:
         reach = _reach(n1, n2) * ts
         durations, move, node_q, node_tip = self.pieces(k0, k1, durations, window)
         piece_tcp = self.tcp[move]
-        if self.tolerance is not None:
+        piece_tolerance = self.tolerance[move]
+        if np.isfinite(piece_tolerance).any():
+            # the tighter tolerance of the two blocks meeting at a corner applies
+            tolerance = np.minimum(piece_tolerance[:-1], piece_tolerance[1:])
             # each piece's path in the frame it is interpolated in (its end node decides)
             node_path = node_q[:, :3].copy()
             tcp_nodes = np.concatenate([piece_tcp[:1], piece_tcp])
             node_path[tcp_nodes] = node_tip[tcp_nodes]
-            factor = self.corner_factors(durations, node_path, reach)
+            factor = self.corner_factors(durations, node_path, reach, tolerance)
             sharp = np.flatnonzero(factor < SHARP_CORNER)
             if sharp.size:
                 # Slowing down for a sharp corner costs more than stopping at it (about one
@@ -341,7 +357,7 @@ class _Context:
                 at = sorted({int(move[c]) + 1 for c in sharp} - {k0, k1})
                 if at:
                     return self._split(k0, k1, at, durations, move)
-            durations = self.blend_within_tolerance(durations, node_path, reach)
+            durations = self.blend_within_tolerance(durations, node_path, reach, tolerance)
         lines = self.program.line[move]
         for _ in range(MAX_PASSES):
             total = durations.sum()
