@@ -266,3 +266,13 @@ def test_program_path_tolerance_g64_p_and_g61(machine, tmp_path):
         assert np.linalg.norm(traj.q[:, :3] - corner, axis=1).min() < 1e-9
     inch = program_of(tmp_path, machine, "G20 G0 X0 Y0 Z0 A0 C0\nG64 P0.001\nG1 X1 F10\n")
     np.testing.assert_allclose(inch.path_tolerance, [0.0254])
+
+
+@pytest.mark.parametrize("between", ["X20", "A1", "G4 P0.001\nG1"])
+def test_a_corner_across_a_block_at_rest_still_blends_within_tolerance(machine, tmp_path,
+                                                                       between):
+    text = f"G0 X0 Y0 Z0 A0 C0\nG1 X20 F3000\n{between}\nY20 F3000\n"
+    program = program_of(tmp_path, machine, text)
+    points = np.array([[0, 0, 0], [20, 0, 0], [20, 20, 0]], dtype=float)
+    traj = program_trajectory(program, machine, tolerance=0.02)
+    assert _distance_to_polyline(traj.q[:, :3], points).max() <= 0.02

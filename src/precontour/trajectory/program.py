@@ -279,23 +279,32 @@ class _Context:
             velocity = np.diff(node_path, axis=0) / durations[:, None]
         velocity[~(durations > 0)] = 0.0
         speed = np.linalg.norm(velocity, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            direction = np.where(speed[:, None] > 0, velocity / speed[:, None], 0.0)
-        step = np.diff(velocity, axis=0)
+        factor = np.ones(max(durations.size - 1, 0))
+        # Pieces at rest in this frame (a pure rotation, a repeated point) are passed over:
+        # the corner is between the moving pieces on either side of them.
+        moving = np.flatnonzero(speed > 0)
+        if moving.size < 2:
+            return factor
+        v, w = velocity[moving[:-1]], velocity[moving[1:]]
+        d_v, d_w = v / speed[moving[:-1], None], w / speed[moving[1:], None]
+        step = w - v
         across = np.zeros(step.shape[0])
-        for d in (direction[:-1], direction[1:]):
+        for d in (d_v, d_w):
             along = np.einsum("ij,ij->i", step, d)[:, None] * d
             across = np.maximum(across, np.linalg.norm(step - along, axis=1))
         # Turning back by more than a right angle, the blend falls short of the corner point
         # along the legs too (a full reversal: only along them): count the whole step.
-        back = np.einsum("ij,ij->i", direction[:-1], direction[1:]) < 0.0
+        back = np.einsum("ij,ij->i", d_v, d_w) < 0.0
         across[back] = np.linalg.norm(step[back], axis=1)
         blend = across * reach
-        # a leg at rest in this frame (e.g. a pure rotation) leaves nothing to blend; below a
-        # picometre the step across is round-off of a straight line cut into pieces
-        blend[(speed[:-1] == 0) | (speed[1:] == 0) | (blend < BLEND_ROUND_OFF)] = 0.0
+        blend[blend < BLEND_ROUND_OFF] = 0.0   # round-off of a straight line cut into pieces
+        span = moving[1:] - moving[:-1]        # corners from one moving piece to the next
+        corner_tolerance = np.minimum.reduceat(tolerance[moving[0]:moving[-1]],
+                                               np.cumsum(span) - span)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(blend > 0, np.minimum(1.0, tolerance / blend), 1.0)
+            pair = np.where(blend > 0, np.minimum(1.0, corner_tolerance / blend), 1.0)
+        factor[moving[0]:moving[-1]] = np.repeat(pair, span)
+        return factor
 
     def blend_within_tolerance(self, durations, node_path, reach, tolerance):
         """Slow the pieces on both sides of each corner by its factor (a few rounds: slowing
