@@ -383,6 +383,8 @@ def test_generic_linear_axes_agree_with_direct_kinematics(machine):
                                                  r"the arc's plane"),
     ("G0 X0 Y0 Z0 A0 C0\nG2 X0 Y0 I0 J0 F10\n", r"line 2, word 'G2': arc radius is zero"),
     ("G0 X0 Y0 Z0 A0 C0\nG2 X10 Y0 I5 P1.5 F10\n", r"line 2, word 'P1.5': arc turns"),
+    ("G0 X0 Y0 Z0 A0\nG2 X1 Y1 C0 I1 J0 F10\n", r"line 2, word 'G2': the first block that "
+                                                 r"sets all axes is an arc"),
     ("G0 X0 Y0 Z0 A0 C0\nG1 X1e3 F10\n", r"line 2, word 'E3': unsupported word 'E3'"),
     ("G0 X0 Y0 Z0 A0 C0\nG1 X1000000000000 F10\n", r"line 2, word 'X1000000000000': "
                                                    r"coordinate .* is out of range"),

@@ -168,8 +168,8 @@ class _Reader:
         self.start = None
         self.start_line = 0
         self.start_tcp = tcp
-        # one entry per move: programmed end (mm, deg), rapid, duration, feed, line, tcp
-        # moves: single ones in lists, sealed into chunks of arrays (with the vectorized ones)
+        # per move: programmed end (mm, deg), rapid, duration, feed, line, tcp, tolerance;
+        # single moves in lists, sealed into chunks of arrays (with the vectorized ones)
         self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
         self.lines, self.tcp_moves, self.tolerances = [], [], []
         self.path_tolerance = math.nan   # G64 P (mm); 0 after G61/G61.1; NaN: not given
@@ -531,16 +531,13 @@ class _Reader:
         rapid = self.motion == 0
         if self.start is None:
             if all(math.isfinite(v) for v in target):
+                # the block that completes the axes ends where the machine starts from
+                if self.motion in (2, 3):
+                    self.fail("the first block that sets all axes is an arc: its start "
+                              "point is unknown; position with G0 first",
+                              g_codes[0][1] if g_codes else None)
                 self.prog = target
                 self.begin(self.row)
-                if rapid or self.motion in (2, 3):
-                    # the block that completes the axes is where the machine is at the start
-                    if self.motion in (2, 3):
-                        self.fail("the first block that sets all axes is an arc: its start "
-                                  "point is unknown; position with G0 first",
-                                  g_codes[0][1] if g_codes else None)
-                    return
-                # a G1 completing the axes: its end is the start too
                 return
             if rapid:
                 self.prog = target
@@ -570,7 +567,7 @@ class _Reader:
         if self.inverse_time:
             if "F" not in spelled:
                 self.fail("inverse-time feed (G93) needs F on every G1/G2/G3 block", "F")
-            return 60.0 / spelled_value(spelled["F"]) / n_pieces, math.nan
+            return 60.0 / float(spelled["F"][1:]) / n_pieces, math.nan
         if not math.isfinite(self.feed):
             self.fail("feed move without a feed rate: program F (G94, per minute)",
                       f"G{self.motion}")
@@ -724,10 +721,6 @@ def _ffill(values: np.ndarray, initial: float) -> np.ndarray:
     index = np.where(np.isnan(values), -1, np.arange(values.size))
     index = np.maximum.accumulate(index)
     return np.where(index >= 0, values[np.maximum(index, 0)], initial)
-
-
-def spelled_value(word: str) -> float:
-    return float(word[1:])
 
 
 def linear_axes(kinematics, P: np.ndarray, rotary: np.ndarray) -> np.ndarray:
