@@ -282,7 +282,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
             print(f"precontour: {notice}", file=sys.stderr)
         traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
                                   tolerance=args.corner_tol)
-        print(f"program {args.toolpath}: {program.n_moves} moves ({int(program.rapid.sum())} "
+        print(f"program {args.toolpath}: {program.n_moves} move(s) ({int(program.rapid.sum())} "
               f"rapid), {len(program.stops)} stop(s), {len(program.passthrough)} pass-through "
               f"line(s){', tool centre point mode' if program.tcp else ''}")
         toolpath = None
