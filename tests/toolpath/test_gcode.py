@@ -299,6 +299,7 @@ def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, 
     np.testing.assert_allclose(program.points[:4, 3:], rot, rtol=0, atol=1e-15)  # as programmed
     np.testing.assert_allclose(program.duration[:3], [6.0, 3.0, 2.0])
     assert program.tcp and program.tcp_move[:3].all()
+    assert all("H1" not in text for _, text in program.passthrough)  # no lone H word
     if option:  # the whole program is TCP: the last rapid is a tip position too
         np.testing.assert_allclose(machine.kinematics.forward(program.q[-1])[0], [0, 0, 100],
                                    atol=1e-10)

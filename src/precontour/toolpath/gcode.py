@@ -388,6 +388,7 @@ class _Reader:
                 self.notices.append(f"{self.source}, line {self.row}: M{number} is not a code "
                                     "precontour knows; kept as a pass-through line")
             self.skipped[f"M{number}"] += 1
+        codes = {code for code, _ in g_codes}
         kept = []  # words an output program keeps, as written, in their order
         for letter, number in words:
             if letter == "G":
@@ -396,11 +397,12 @@ class _Reader:
                     kept.append(letter + number)
                     self.skipped[_g_name(code)] += 1
             elif letter == "M" or letter in _PASSTHROUGH_WORDS:
-                kept.append(letter + number)
                 if letter != "M":
                     self.skipped[letter] += 1
+                # H goes with G43; with G43.4/G43.5 (TCP, not kept) it would stand alone
+                if letter != "H" or 430 in codes:
+                    kept.append(letter + number)
 
-        codes = {code for code, _ in g_codes}
         if 200 in codes:
             self.inch = True
         if 210 in codes:
