@@ -60,7 +60,10 @@ def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
         name or machine file path is loaded. Ignored for CL data.
     feed_units : {"mm/min", "mm/s"}
         Unit of CL-data feeds that carry none (CSV ``F`` column, bare APT ``FEDRAT``).
-        G-code feeds are always per minute (G94) and ignore it.
+        G-code carries its own (G93 inverse time, G94 per minute) and ignores it. A G-code
+        program read this way is its points only; :func:`~precontour.toolpath.read_program`
+        gives the whole program (block times, stops, pass-through lines), which
+        :func:`~precontour.trajectory.program_trajectory` times as a CNC does.
     format : {"clcsv", "apt", "gcode"}, optional
         Override the extension.
     tcp : bool
