@@ -37,6 +37,12 @@ in its programmed time, and a segment lasts the sum of its block times plus T1 +
 filters' start-up and run-out), because a moving average delays the motion by half its
 length and does not stretch it.
 
+Why not the CL-path planner (:mod:`.pathspline` + :mod:`.feedplan`): it runs an interpolating
+quintic spline through every point and plans its own feed along it. A program's blocks are
+straight lines with given times; through a corner such a spline overshoots (it has no
+tolerance), and its feed plan would not keep the block times. The limits and the sample
+check tolerance are shared with it.
+
 The reference tool path P, O is the direct kinematics of the filtered axis commands: the
 interpolated program path as the machine is told to move, rapids included.
 """
