@@ -278,3 +278,17 @@ def test_a_corner_across_a_block_at_rest_still_blends_within_tolerance(machine, 
     points = np.array([[0, 0, 0], [20, 0, 0], [20, 20, 0]], dtype=float)
     traj = program_trajectory(program, machine, tolerance=0.02)
     assert _distance_to_polyline(traj.q[:, :3], points).max() <= 0.02
+
+
+def test_tcp_arc_is_a_circle_of_the_tool_tip(machine, tmp_path):
+    text = "G43.4 H1\nG0 X10 Y0 Z5 A-30 C0\nG3 X-10 Y0 A-40 C90 I-10 J0 F300\nG49\n"
+    program = program_of(tmp_path, machine, text)
+    tips, _ = machine.kinematics.forward(program.points)
+    np.testing.assert_allclose(np.hypot(tips[:, 0], tips[:, 1]), 10.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(tips[:, 2], 5.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(program.q[-1, 3:]), [-40, 90], atol=1e-12)
+    traj = program_trajectory(program, machine)
+    on = (traj.line == 3)
+    r = np.hypot(traj.P[on, 0], traj.P[on, 1])[50:-50]
+    assert np.abs(r - 10.0).max() < 2e-3 and np.abs(traj.P[on, 2][50:-50] - 5).max() < 2e-3
+    assert summarize(traj, machine).within_limits
