@@ -4,8 +4,8 @@ The package is laid out by pipeline stage; data flows one way, and a stage impor
 stages before it::
 
     machine/       machine file, drives, controllers, kinematics
-    toolpath/      programs in: CL CSV, APT CL data, G-code
-    trajectory/    path splines, feed planning, 1 kHz axis commands (Trajectory)
+    toolpath/      programs in: CL CSV, APT CL data, G-code (Program)
+    trajectory/    path splines, feed planning, program timing, 1 kHz axis commands (Trajectory)
     prediction/    minimum-jerk spline fit, closed-form tracking error, contour errors
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
@@ -17,20 +17,21 @@ The names below are the entry points a library user needs.
 """
 
 from .compensation import CompensationResult, compensate
-from .errors import InputError, MachineFileError, PrecontourError, ToolPathError
+from .errors import InputError, MachineFileError, PrecontourError, ProgramError, ToolPathError
 from .machine import Machine, load_machine
 from .prediction import (AxisPrediction, ContourErrors, ReferencePath, contour_errors,
                          predict_tracking)
 from .simulation import SimulationResult, simulate, simulate_trajectory
 from .tables import read_trajectory, write_columns
-from .toolpath import ToolPath, read_toolpath
-from .trajectory import Trajectory, builtin_path, generate_trajectory
+from .toolpath import Program, ToolPath, read_program, read_toolpath
+from .trajectory import Trajectory, builtin_path, generate_trajectory, program_trajectory
 
 __version__ = "0.1.0"
 
 __all__ = ["AxisPrediction", "CompensationResult", "ContourErrors", "InputError", "Machine",
-           "MachineFileError", "PrecontourError", "ReferencePath", "SimulationResult",
-           "ToolPath", "ToolPathError", "Trajectory", "builtin_path", "compensate",
-           "contour_errors", "generate_trajectory", "load_machine", "predict_tracking",
-           "read_toolpath", "read_trajectory", "simulate", "simulate_trajectory",
-           "write_columns", "__version__"]
+           "MachineFileError", "PrecontourError", "Program", "ProgramError", "ReferencePath",
+           "SimulationResult", "ToolPath", "ToolPathError", "Trajectory", "builtin_path",
+           "compensate", "contour_errors", "generate_trajectory", "load_machine",
+           "predict_tracking", "program_trajectory", "read_program", "read_toolpath",
+           "read_trajectory", "simulate", "simulate_trajectory", "write_columns",
+           "__version__"]

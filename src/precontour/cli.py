@@ -25,9 +25,10 @@ from .machine.machine_file import load_machine
 from .simulation.virtual_machine import simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
 from .tables import read_trajectory, trajectory_columns, write_columns
-from .toolpath import read_toolpath
+from .toolpath import read_program, read_toolpath, toolpath_format
 from .prediction.tracking import predict_tracking
 from .trajectory.generate import DEFAULT_DWELL, generate_trajectory, summarize
+from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
 
 EXIT_USAGE = 2
 
@@ -71,9 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     trajectory = commands.add_parser(
         "trajectory", help="tool path in, smooth time-stamped five-axis trajectory out",
-        description="Read a tool path (CL-data CSV, APT CL data or G-code) or take a built-in "
-                    "path, fit C3 geometric splines, plan a jerk-limited feed within the "
-                    "machine's limits and sample axis commands at the servo period.")
+        description="Read a tool path (CL-data CSV or APT CL data) or take a built-in path, "
+                    "fit C3 geometric splines, plan a jerk-limited feed within the machine's "
+                    "limits and sample axis commands at the servo period. A G-code program "
+                    "is executed as a CNC does: its block times (G93/G94 feeds), rapids at "
+                    "the machine's rapid rate, stops, and jerk-limited blending of the "
+                    "blocks within the axis limits; the output then has a 'line' column.")
     source = trajectory.add_mutually_exclusive_group(required=True)
     source.add_argument("toolpath", nargs="?", type=Path,
                         help="tool path file: .csv (Px,Py,Pz,Oi,Oj,Ok[,F]), .apt/.cls/.cl, "
@@ -83,14 +87,26 @@ def build_parser() -> argparse.ArgumentParser:
     trajectory.add_argument("--machine", default="zhang2013",
                             help="built-in machine name or machine TOML file (default: zhang2013)")
     trajectory.add_argument("--feed", type=_positive_float, default=DEFAULT_FEED, metavar="MM_S",
-                            help=f"maximum tool tip feed in mm/s (default {DEFAULT_FEED:g})")
+                            help=f"maximum tool tip feed in mm/s for CL data and built-in paths "
+                                 f"(default {DEFAULT_FEED:g}); a G-code program keeps its own")
     trajectory.add_argument("--ts", type=_positive_float, default=None, metavar="S",
                             help="sampling period in s (default: the machine's servo period)")
     trajectory.add_argument("--feed-units", choices=("mm/min", "mm/s"), default="mm/min",
                             help="unit of programmed feeds in CL-data CSV/APT (default mm/min)")
     trajectory.add_argument("--dwell", type=_nonnegative_float, default=DEFAULT_DWELL, metavar="S",
-                            help="hold the final position this long so the drives settle "
-                                 f"inside the trajectory (default {DEFAULT_DWELL:g} s)")
+                            help="hold the final position (and, for G-code, each M0/M1/M6 "
+                                 "stop) this long so the drives settle inside the trajectory "
+                                 f"(default {DEFAULT_DWELL:g} s)")
+    trajectory.add_argument("--corner-tol", type=_positive_float, default=DEFAULT_TOLERANCE,
+                            metavar="MM",
+                            help="G-code: largest distance by which the blend of a corner "
+                                 "between two blocks may leave the programmed path, where the "
+                                 "program sets none (G64 P, G61); sharper corners are slowed "
+                                 f"for, or stopped at (default {DEFAULT_TOLERANCE:g} mm)")
+    trajectory.add_argument("--tcp", action="store_true",
+                            help="G-code: the whole program is in tool centre point mode (X Y Z "
+                                 "the tool tip, A C the rotary axes), for controllers that "
+                                 "switch it with their own M code (LinuxCNC M428)")
     trajectory.add_argument("-o", "--output", type=Path, required=True,
                             help="output file (.csv/.npz/.parquet): "
                                  "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -257,12 +273,26 @@ def run_predict(args: argparse.Namespace) -> int:
 def run_trajectory(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     machine = load_machine(args.machine)
+    ts = machine.servo_period if args.ts is None else args.ts
     if args.builtin:
         toolpath = builtin_path(args.builtin)
+    elif toolpath_format(args.toolpath) == "gcode":
+        program = read_program(args.toolpath, machine, tcp=args.tcp)
+        for notice in program.notices:
+            print(f"precontour: {notice}", file=sys.stderr)
+        traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
+                                  tolerance=args.corner_tol)
+        print(f"program {args.toolpath}: {program.n_moves} move(s) ({int(program.rapid.sum())} "
+              f"rapid), {len(program.stops)} stop(s), {len(program.passthrough)} pass-through "
+              f"line(s){', tool centre point mode' if program.tcp else ''}")
+        toolpath = None
     else:
+        if args.tcp:
+            raise InputError("--tcp applies to G-code programs only (CL data gives the tool "
+                             "tip already)", source=str(args.toolpath), field="--tcp")
         toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units)
-    ts = machine.servo_period if args.ts is None else args.ts
-    traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell)
+    if toolpath is not None:
+        traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell)
     inputs = [] if args.builtin else [args.toolpath]
     write_columns(args.output, trajectory_columns(traj), inputs=inputs)
     print(summarize(traj, machine).format())

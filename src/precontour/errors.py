@@ -27,6 +27,10 @@ class InputError(PrecontourError, ValueError):
         Column, key or field name.
     """
 
+    #: How the location's row and field are called in messages.
+    ROW_NAME = "row"
+    FIELD_NAME = "field"
+
     def __init__(self, message: str, *, source: str | None = None,
                  row: int | None = None, field: str | None = None):
         self.source = source
@@ -36,9 +40,9 @@ class InputError(PrecontourError, ValueError):
         if source is not None:
             where.append(str(source))
         if row is not None:
-            where.append(f"row {row}")
+            where.append(f"{self.ROW_NAME} {row}")
         if field is not None:
-            where.append(f"field {field!r}")
+            where.append(f"{self.FIELD_NAME} {field!r}")
         prefix = ": ".join([", ".join(where)]) + ": " if where else ""
         super().__init__(prefix + message)
 
@@ -49,6 +53,14 @@ class MachineFileError(InputError):
 
 class ToolPathError(InputError):
     """A tool path file cannot be read or describes an impossible path."""
+
+
+class ProgramError(ToolPathError):
+    """An NC program (G-code) cannot be read: the message names the file, the line and the
+    word (``prog.ngc, line 12, word 'G28': ...``)."""
+
+    ROW_NAME = "line"
+    FIELD_NAME = "word"
 
 
 class UnsupportedControllerError(PrecontourError, ValueError):

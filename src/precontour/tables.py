@@ -23,6 +23,8 @@ from .trajectory.sampled import Trajectory, check_uniform_time
 #: column A holds the B axis (slot 3 of q).
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("t",) + AXES
 REFERENCE_COLUMNS: tuple[str, ...] = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")
+#: Optional column: source line of the NC-program block executing at each sample.
+LINE_COLUMN = "line"
 SUPPORTED_SUFFIXES: tuple[str, ...] = (".csv", ".npz", ".parquet")
 
 
@@ -85,9 +87,10 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
 
 def read_trajectory(path: str | Path, *, min_samples: int = 4) -> Trajectory:
     """Read a trajectory file with columns ``t,X,Y,Z,A,C`` (s, mm, rad) and, if all present,
-    the reference ``Px,Py,Pz,Oi,Oj,Ok``. Time must be uniformly sampled."""
+    the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional program ``line`` (whole numbers).
+    Time must be uniformly sampled."""
     source = str(path)
-    columns = read_columns(path, TRAJECTORY_COLUMNS, REFERENCE_COLUMNS)
+    columns = read_columns(path, TRAJECTORY_COLUMNS, REFERENCE_COLUMNS + (LINE_COLUMN,))
     check_uniform_time(columns["t"], source=source, min_samples=min_samples)
     q = np.stack([columns[axis] for axis in AXES], axis=1)
     P = O = None
@@ -95,16 +98,28 @@ def read_trajectory(path: str | Path, *, min_samples: int = 4) -> Trajectory:
         P = np.stack([columns[name] for name in REFERENCE_COLUMNS[:3]], axis=1)
         O = normalize_orientations(np.stack([columns[name] for name in REFERENCE_COLUMNS[3:]],
                                             axis=1), source=source)
-    return Trajectory(t=columns["t"], q=q, P=P, O=O)
+    line = None
+    if LINE_COLUMN in columns:
+        values = columns[LINE_COLUMN]
+        whole = (values == np.round(values)) & (np.abs(values) < 2.0**53)
+        if not whole.all():
+            row = int(np.flatnonzero(~whole)[0])
+            raise InputError(f"line number is not a whole number ({float(values[row])!r})",
+                             source=source, row=row + 1, field=LINE_COLUMN)
+        line = values.astype(np.int64)
+    return Trajectory(t=columns["t"], q=q, P=P, O=O, line=line)
 
 
 def trajectory_columns(traj: Trajectory) -> dict[str, np.ndarray]:
-    """The columns of a trajectory file: ``t,X,Y,Z,A,C`` and, if present, ``Px..Ok``."""
+    """The columns of a trajectory file: ``t,X,Y,Z,A,C`` and, if present, ``Px..Ok`` and
+    ``line`` (written as a float column, like the others)."""
     columns = {"t": traj.t}
     columns.update({axis: traj.q[:, i] for i, axis in enumerate(AXES)})
     if traj.has_reference:
         columns.update({name: traj.P[:, i] for i, name in enumerate(REFERENCE_COLUMNS[:3])})
         columns.update({name: traj.O[:, i] for i, name in enumerate(REFERENCE_COLUMNS[3:])})
+    if traj.line is not None:
+        columns[LINE_COLUMN] = traj.line
     return columns
 
 

@@ -1,5 +1,7 @@
 """Tool paths as programmed: tool tip points and orientations in the workpiece frame.
 
+NC programs (G-code) are read by :func:`read_program` (:mod:`.gcode`) into a
+:class:`~.program.Program` in machine axes, which the trajectory stage times as a CNC does.
 Each reader (one module per file format: :mod:`.clcsv`, :mod:`.apt`, :mod:`.gcode`) returns a
 :class:`ToolPath`; :func:`read_toolpath` picks one by file extension (:mod:`.readers`). The
 ``*_report`` variants return a :class:`ReadReport` with the source line of each point, rapid
@@ -46,10 +48,12 @@ class ToolPath:
 from ._common import FEED_UNITS, ReadReport  # noqa: E402
 from .apt import read_apt, read_apt_report  # noqa: E402
 from .clcsv import read_clcsv, read_clcsv_report  # noqa: E402
-from .gcode import read_gcode, read_gcode_report  # noqa: E402
+from .gcode import read_gcode, read_gcode_report, read_program  # noqa: E402
+from .program import Program, Stop  # noqa: E402
 from .readers import (EXTENSIONS, read_toolpath, read_toolpath_report,  # noqa: E402
                       toolpath_format)
 
 __all__ = ["ToolPath", "ReadReport", "FEED_UNITS", "EXTENSIONS", "read_toolpath",
            "read_toolpath_report", "toolpath_format", "read_clcsv", "read_clcsv_report",
-           "read_apt", "read_apt_report", "read_gcode", "read_gcode_report"]
+           "read_apt", "read_apt_report", "read_gcode", "read_gcode_report", "read_program",
+           "Program", "Stop"]

@@ -1,367 +1,788 @@
-"""Reader for G-code programs in machine axes (X Y Z in mm or inch, A C in degrees).
+"""Reader for G-code programs as CAM post-processors write them (RS274/NGC, Fanuc, LinuxCNC,
+Sinumerik TRAORI), into a :class:`~precontour.toolpath.program.Program` in machine axes.
 
-Each ``G0``/``G1`` block gives machine-axis positions q = [X, Y, Z, A, C]; a missing axis
-word keeps its previous value (axes never programmed start at 0), and the motion mode is
-modal. The machine's direct kinematics turns q into tool tip and orientation. Supported:
-``G90``/``G91`` (absolute default), ``G20``/``G21`` (mm default; inch lengths and feeds are
-converted), ``G94`` feed ``F`` per minute (to mm/s), ``G4`` dwell, comments ``( )`` and
-``;``, ``N`` numbers, ``%`` lines, ``O`` program numbers and block delete ``/`` (such blocks
-are skipped by default). Codes that do not change the axis commands (plane selection,
-compensation and cycle cancels, work offsets, path modes, ``G43`` tool length, which the
-machine's kinematics is taken to include) and the words ``M S T H D`` are counted in
-``ReadReport.skipped``. Arcs, inverse-time and per-revolution feed, canned cycles, tool-centre
-point / tilted-plane modes, parameters and every other code are errors naming the line.
+What is read, block by block with the usual modal state:
+
+- motion G0, G1, G2/G3 (arcs in the G17/G18/G19 plane by I J K or R, full circles, P turns,
+  helix: the normal axis and the rotary axes move linearly along the arc; the start and end
+  radius may differ by :data:`ARC_RADIUS_TOLERANCE` mm or :data:`ARC_RADIUS_RTOL` of the
+  radius, whichever is larger, and the radius then changes linearly with the angle, as in
+  LinuxCNC); arcs are subdivided into chords within :data:`ARC_CHORD_TOLERANCE`;
+- feeds G93 (inverse time: a block takes 1/F min, F on every feed block) and G94 (per minute:
+  the XYZ length, or the rotary degrees of a rotary-only move, divided by F), switched freely;
+- G90/G91, G90.1/G91.1 (arc centres absolute / incremental), G20/G21, modal motion and
+  coordinates, ``N`` numbers, ``( )`` and ``;`` comments, ``/`` block delete, ``%``, ``O``
+  program numbers;
+- tool centre point (TCP) mode, G43.4/G43.5 ... G49 or TRAORI ... TRAFOOF, or the whole
+  program with ``tcp=True``: X Y Z are then the tool tip in the workpiece frame, the rotary
+  axes are taken as programmed and the linear axes follow from the machine's kinematics;
+- stops: G4 dwell (P or X seconds), M0, M1, M6 (tool change), M2/M30 (end; later lines are
+  not read);
+- kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
+  G17-G19, G40, G43, G49, G54-G59 (identity offsets), G61, G64, G80; any other M code is kept
+  too, with a one-line notice (LinuxCNC programs switch TCP with remapped M428/M429). G64 P
+  (path tolerance) and G61/G61.1 (exact path: 0) are also kept per move for the timing.
+
+Everything else -- subroutines and control flow (O-word sub/call/if/while, M98/M99, G65),
+macros and variables (``#``, ``[ ]``), G10, G28/G30, G53, G92, cutter compensation, canned
+cycles, G95 -- is one :class:`~precontour.errors.ProgramError` naming the file, line and word.
 """
 
 from __future__ import annotations
 
-import io
+import inspect
+import math
 import re
 from collections import Counter
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.csv as pacsv
 
-from ..errors import InputError, ToolPathError
+from ..errors import InputError, ProgramError
 from ._common import INCH, ReadReport, finish, read_text
+from .program import Program, Stop
 
-#: Machine-axis words, in the order of q.
+#: Largest distance (mm) between an arc and its chords.
+ARC_CHORD_TOLERANCE = 1e-3
+#: Start/end radius mismatch of an arc tolerated in mm ...
+ARC_RADIUS_TOLERANCE = 5e-3
+#: ... or as a fraction of the radius, whichever is larger (LinuxCNC's rule).
+ARC_RADIUS_RTOL = 1e-3
+#: Largest number of chords one arc may be cut into (memory guard against absurd arcs).
+MAX_ARC_CHORDS = 1_000_000
+
+#: Machine-axis words of the default machine, in the order of q.
 AXIS_WORDS = ("X", "Y", "Z", "A", "C")
 
-#: G codes read and ignored: they do not change the axis commands the program gives.
-IGNORED_G = frozenset(["G17", "G18", "G19", "G40", "G43", "G49", "G54", "G55", "G56", "G57",
-                       "G58", "G59", "G61", "G64", "G80"])
-
-#: Words other than G, F and the axes that are read and ignored.
-IGNORED_WORDS = frozenset("NOMSTHD")
-
+# G codes in tenths (G43.4 -> 434).
+_MOTION = {0: 0, 10: 1, 20: 2, 30: 3}
+_PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+#: G codes accepted and kept for an output program (they do not change the axis commands).
+PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 490, 540, 550, 560, 570, 580, 590, 610,
+                           611, 640, 800])
+_MODE_G = frozenset([40, 200, 210, 434, 435, 900, 901, 910, 911, 930, 940])
+_MODAL_GROUPS = (frozenset(_MOTION), frozenset(_PLANES), frozenset([200, 210]),
+                 frozenset([900, 910]), frozenset([901, 911]), frozenset([930, 940]),
+                 frozenset([430, 434, 435, 490]))
 _UNSUPPORTED_G = {
-    "G2": "circular interpolation (G2) is not supported; output linear G1 moves",
-    "G3": "circular interpolation (G3) is not supported; output linear G1 moves",
-    "G93": "inverse-time feed (G93) is not supported; output G94 feeds in mm/min",
-    "G95": "feed per revolution (G95) is not supported; output G94 feeds in mm/min",
-    "G43.4": "tool centre point control (G43.4) gives tool-tip coordinates, not machine "
-             "axes; write the tip path as CL data (CSV or APT) instead",
-    "G43.5": "tool centre point control (G43.5) gives tool-tip coordinates, not machine "
-             "axes; write the tip path as CL data (CSV or APT) instead",
-    "G68.2": "tilted working plane (G68.2) is not supported",
+    100: "G10 (writing offset and tool tables) is not supported",
+    280: "G28 (return through a reference point) is not supported: the machine file has no "
+         "reference position; program the move",
+    281: "G28.1 is not supported",
+    300: "G30 (return through a reference point) is not supported: program the move",
+    301: "G30.1 is not supported",
+    530: "G53 (move in machine coordinates) is not supported: program the move in the "
+         "work coordinates",
+    920: "G92 (coordinate offsets) is not supported",
+    921: "G92.1 (coordinate offsets) is not supported",
+    922: "G92.2 (coordinate offsets) is not supported",
+    923: "G92.3 (coordinate offsets) is not supported",
+    950: "feed per revolution (G95) is not supported; use G94 or G93",
+    410: "cutter radius compensation (G41) is not supported; post-process with the tool "
+         "radius applied",
+    420: "cutter radius compensation (G42) is not supported; post-process with the tool "
+         "radius applied",
+    650: "macro calls (G65) are not supported",
+    682: "tilted working plane (G68.2) is not supported",
+    680: "coordinate rotation (G68) is not supported",
 }
+_STOP_M = {0: "program stop", 1: "optional stop", 6: "tool change", 2: "end", 30: "end"}
+_KNOWN_M = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30])
+_SUBROUTINE_M = {98: "subprogram calls (M98) are not supported",
+                 99: "subprogram returns (M99) are not supported"}
+_PASSTHROUGH_WORDS = frozenset("STHD")
 
-_CODE_NAMES = {0: "G0", 10: "G1", 20: "G2", 30: "G3", 40: "G4", 200: "G20", 210: "G21",
-               900: "G90", 910: "G91", 930: "G93", 940: "G94", 950: "G95"}
-#: G codes (in tenths, G43.4 -> 434) that share a modal group: two in one block is an error.
-_MODAL_GROUPS = ((0, 10, 20, 30), (900, 910), (200, 210), (930, 940, 950))
+_WORD = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))")
+_COMMENT = re.compile(r"\(([^()]*)\)")
+_CONTROL = re.compile(r"^O(?:\d+|<[^>]*>)?(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|DO|"
+                      r"WHILE|ENDWHILE|REPEAT|ENDREPEAT|BREAK|CONTINUE)")
+_TRAORI = re.compile(r"TRAORI(?:\([^)]*\))?")
+_BLANKS = str.maketrans("", "", " \t\r\f\v")
 
-_COMMENTS = re.compile(r"\([^()\n]*\)|;[^\n]*")
-_PERCENT = re.compile(r"\n%[^\n]*")
-_DELETED = re.compile(r"\n/[^\n]*")
-_DROP_BLANKS = str.maketrans("", "", " \t\r\f\v")
-_NUMBER_CHAR = np.zeros(256, dtype=bool)
-_NUMBER_CHAR[np.frombuffer(b"0123456789.+-", dtype=np.uint8)] = True
-# a line not starting with a word, or a letter not followed by a plain number
-_BAD = re.compile(r"^(?![A-Z\n]|$)|[A-Z](?![-+]?(?:\d+\.?\d*|\.\d+)(?=[A-Z\n]|$))", re.M)
-
-__all__ = ["read_gcode", "read_gcode_report", "AXIS_WORDS", "IGNORED_G", "IGNORED_WORDS"]
+__all__ = ["read_program", "read_gcode", "read_gcode_report", "AXIS_WORDS",
+           "ARC_CHORD_TOLERANCE", "ARC_RADIUS_TOLERANCE", "ARC_RADIUS_RTOL", "PASSTHROUGH_G"]
 
 
-def read_gcode(path: str | Path, machine, *, block_delete: bool = True):
-    """Read a G-code program into a :class:`~precontour.toolpath.ToolPath`.
+def read_program(path: str | Path, machine, *, tcp: bool = False,
+                 block_delete: bool = True,
+                 arc_tolerance: float = ARC_CHORD_TOLERANCE) -> Program:
+    """Read a G-code program into machine-axis moves (see the module docstring).
 
     Parameters
     ----------
     path : str or Path
-        G-code file in machine axes (see the module docstring).
+        The program.
     machine : Machine or str
-        The machine (or a built-in machine name / machine file for
-        :func:`~precontour.machine.machine_file.load_machine`); ``machine.kinematics.forward(q)`` maps
-        axis positions to tool tip and orientation.
+        The machine (or a built-in name / machine file): its kinematics'
+        ``forward(q) -> (P, O)`` converts TCP tool tips to machine axes.
+    tcp : bool
+        The whole program is in TCP mode (for controllers that switch it with their own M
+        code, e.g. LinuxCNC's M428).
     block_delete : bool
-        Skip blocks starting with ``/`` (block-delete switch on).
+        Skip blocks starting with ``/``.
+    arc_tolerance : float
+        Largest distance between an arc and its chords, mm.
 
     Returns
     -------
-    ToolPath
-        P (M, 3) mm and unit O (M, 3) in the workpiece frame, feed (M,) mm/s (NaN for
-        ``G0`` moves and before the first ``F``).
-    """
-    return read_gcode_report(path, machine, block_delete=block_delete).toolpath
-
-
-def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True) -> ReadReport:
-    """Like :func:`read_gcode`, returning the :class:`ReadReport`, whose ``axes`` holds the
-    machine-axis positions q (M, 5) [mm, mm, mm, rad, rad] of the points.
-
-    The whole program is tokenized at once (regular expressions over the text, numbers
-    parsed by pyarrow) and the modal state is carried from block to block with array
-    forward-fills, so the cost is linear in the file size with no per-block Python work.
+    Program
 
     Raises
     ------
-    ToolPathError
-        One line naming the file, line and word: an unparseable number or text, an
-        unsupported G code or word, two codes of one modal group or a repeated word in a
-        block, axis words before any ``G0``/``G1``, no motion at all, and the checks common
-        to all readers. Problems are checked kind by kind (syntax, repeated words, codes,
-        modes, motion); within a kind the first line is reported.
+    ProgramError
+        One line naming the file, line and word, for the first problem in the program.
     """
-    source = str(path)
     kinematics = _kinematics(machine)
-    text = read_text(path).replace("\r\n", "\n").replace("\r", "\n")
-    skipped: Counter[str] = Counter()
+    if not (np.isfinite(arc_tolerance) and arc_tolerance > 0):
+        raise InputError(f"arc tolerance must be positive, got {arc_tolerance!r}",
+                         field="arc_tolerance")
+    source = str(path)
+    text = read_text(path)
+    axes = _axis_letters(machine)
+    return _Reader(source, kinematics, axes, tcp, block_delete, arc_tolerance).run(text)
 
-    # Blanks go first so that the line-start patterns below begin with a literal newline,
-    # which the regex engine searches for quickly; a newline is prepended for line 1.
-    text = "\n" + text.translate(_DROP_BLANKS)
-    if "(" in text or ")" in text or ";" in text:
-        text = _COMMENTS.sub("", text)
-        paren = re.search(r"[()]", text)
-        if paren:
-            raise ToolPathError("unbalanced or nested '(' comment", source=source,
-                                row=_line_at(text, paren.start()) - 1)
-    if "%" in text:
-        text = _PERCENT.sub("\n", text)
-    if "/" in text:
-        if block_delete:
-            text, deleted = _DELETED.subn("\n", text)
-            if deleted:
-                skipped["/"] = deleted
+
+class _Reader:
+    """The modal state of the program while it is read, block by block."""
+
+    def __init__(self, source, kinematics, axes, tcp, block_delete, arc_tolerance):
+        self.source, self.kinematics, self.axes = source, kinematics, axes
+        self.axis_index = {a: i for i, a in enumerate(axes)}
+        number = r"([-+]?(?:\d+\.?\d*|\.\d+))"
+        self.plain = re.compile(r"(?:N\d+)?(?:G0?([01])(?![\d.]))?"
+                                + "".join(f"(?:{a}{number})?" for a in axes)
+                                + f"(?:F{number})?")
+        self.block_delete, self.arc_tolerance = block_delete, arc_tolerance
+        self.tcp_all = tcp
+        self.tcp = tcp
+        self.motion = None
+        self.plane = _PLANES[170]
+        self.inch = False
+        self.incremental = False
+        self.arc_absolute = False
+        self.inverse_time = False
+        self.feed = math.nan          # G94 feed, mm/min
+        self.prog = [math.nan] * 5    # programmed coordinates (tip + rotary in TCP), mm, deg
+        self.start = None
+        self.start_line = 0
+        self.start_tcp = tcp
+        # per move: programmed end (mm, deg), rapid, duration, feed, line, tcp, tolerance;
+        # single moves in lists, sealed into chunks of arrays (with the vectorized ones)
+        self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
+        self.lines, self.tcp_moves, self.tolerances = [], [], []
+        self.path_tolerance = math.nan   # G64 P (mm); 0 after G61/G61.1; NaN: not given
+        self.chunks = []
+        self.n_moves = 0
+        self.stops, self.passthrough, self.notices = [], [], []
+        self.skipped = Counter()
+        self.unknown_m = set()
+        self.pending = []
+        self.row = 0
+
+    # ------------------------------------------------------------------ errors
+    def fail(self, message, word=None):
+        raise ProgramError(message, source=self.source, row=self.row, field=word)
+
+    # ------------------------------------------------------------------ program
+    def run(self, text: str) -> Program:
+        for row, raw in enumerate(text.splitlines(), start=1):
+            self.row = row
+            if self.block(raw):
+                break
+        self.flush()
+        return self.finish()
+
+    def block(self, raw: str) -> bool:
+        """Execute one line; True after the program end (M2/M30). Plain motion blocks
+        (``[N..] [G0|G1] axis words [F..]`` in the machine's axis order) are collected and
+        executed together by :meth:`flush`."""
+        if self.start is not None and "(" not in raw and ";" not in raw:
+            code = raw.upper().translate(_BLANKS)
+            if code and code[0] not in "%/":
+                plain = self.plain.fullmatch(code)
+                if plain is not None:
+                    self.pending.append((self.row, plain.groups(), raw))
+                    return False
+        self.flush()
+        return self.general(raw)
+
+    def flush(self):
+        """Execute the collected plain blocks at once; if any of them needs a word-by-word
+        look (an error to report), all are executed one by one instead."""
+        pending, self.pending = self.pending, []
+        if pending and not self.plain_blocks(pending):
+            for row, _, raw in pending:
+                self.row = row
+                self.general(raw)
+
+    def plain_blocks(self, pending) -> bool:
+        """Vectorized :meth:`general` for plain blocks: False (nothing changed) if one of them
+        needs the general path."""
+        rows = np.array([row for row, _, _ in pending], dtype=np.int64)
+        columns = list(zip(*(groups for _, groups, _ in pending)))
+        # pyarrow's C++ parser: about ten times faster than float() on each word
+        values = np.stack([pa.array(column, type=pa.string()).cast(pa.float64())
+                           .to_numpy(zero_copy_only=False) for column in columns])
+        motion = _ffill(values[0], math.nan if self.motion is None else float(self.motion))
+        if not np.isin(motion, (0.0, 1.0)).all():
+            return False
+        scale = INCH if self.inch else 1.0
+        words = values[1:6].T.copy()
+        words[:, :3] *= scale
+        f_word = values[6]
+        if (f_word <= 0).any():
+            return False
+        given = ~np.isnan(words)
+        prog = np.array(self.prog, dtype=float)
+        if self.incremental:
+            target = prog + np.cumsum(np.where(given, words, 0.0), axis=0)
         else:
-            text = text.replace("\n/", "\n")
-    text = text[1:]
-    if not text.isascii():
-        bad = next(i for i, ch in enumerate(text) if not ch.isascii())
-        raise ToolPathError(f"cannot parse {text[bad]!r}", source=source,
-                            row=_line_at(text, bad))
-    text = text.upper()
+            target = np.column_stack([_ffill(words[:, i], prog[i]) for i in range(5)])
+        if not (np.abs(target) < 1e9).all():
+            return False
+        moving = given.any(axis=1)
+        feed_rows = motion == 1.0
+        if self.inverse_time:
+            if np.isnan(f_word[moving & feed_rows]).any():
+                return False
+            feed = np.full(len(rows), self.feed)
+        else:
+            feed = _ffill(f_word * scale, self.feed)
+            if np.isnan(feed[moving & feed_rows]).any():
+                return False
+        if moving.any():
+            end = target[moving]
+            start = np.concatenate([prog[None, :], end[:-1]])
+            xyz = np.linalg.norm(end[:, :3] - start[:, :3], axis=1)
+            rot = np.linalg.norm(end[:, 3:] - start[:, 3:], axis=1)
+            rapid = motion[moving] == 0.0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                if self.inverse_time:
+                    duration = 60.0 / f_word[moving]
+                    feed_s = np.full(end.shape[0], math.nan)
+                else:
+                    duration = 60.0 * np.where(xyz > 0, xyz, rot) / feed[moving]
+                    feed_s = feed[moving] / 60.0
+            duration[rapid] = math.nan
+            feed_s[rapid] = math.nan
+            self.add_many(end, rapid, duration, feed_s, rows[moving])
+        self.motion = int(motion[-1])
+        if not self.inverse_time:
+            self.feed = float(feed[-1])
+        return True
 
-    # Tokens: letter, value and 0-based line of every word, in file order. The text may
-    # hold only letters, number characters and newlines, every line must start with a
-    # letter, and every letter must be followed by a number; the regex that words the
-    # message runs only when the fast byte-level checks fail.
-    chars = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
-    is_letter = (chars >= ord("A")) & (chars <= ord("Z"))
-    newline = chars == ord("\n")
-    starts = np.flatnonzero(newline) + 1
-    starts = np.concatenate([[0], starts[starts < chars.size]]) if chars.size else starts
-    ok = (np.all(is_letter | newline | _NUMBER_CHAR[chars])
-          and np.all(is_letter[starts] | newline[starts]))
-    letter = chars[is_letter]
-    value = None
-    if ok:
-        digits = chars.copy()
-        digits[is_letter] = ord("\n")  # one number per line for the CSV parser
-        value = _parse_numbers(digits[~newline].tobytes(), letter.size)
-    if value is None:
-        _raise_syntax(text, source)
-    marks = newline[is_letter | newline]
-    n_lines = int(newline.sum()) + 1
-    line = np.cumsum(marks)[~marks]
+    def general(self, raw: str) -> bool:
+        """Execute one line word by word (every construct, every error)."""
+        s = raw.strip()
+        if not s or s[0] == "%":
+            return False
+        if s[0] == "/":
+            if self.block_delete:
+                self.skipped["/"] += 1
+                return False
+            s = s[1:]
+        comments = []
+        if "(" in s or ")" in s:
+            comments = _COMMENT.findall(s)
+            s = _COMMENT.sub(" ", s)
+            if "(" in s or ")" in s:
+                self.fail("unbalanced or nested '(' comment")
+        if ";" in s:
+            s, _, rest = s.partition(";")
+            comments.append(rest)
+        code = s.upper().translate(_BLANKS)
+        if not code:
+            if comments:
+                self.passthrough.append((self.row, raw.strip()))
+            return False
+        traori = trafoof = False
+        if "TRA" in code:
+            code, n_on = _TRAORI.subn("", code)
+            code, n_off = re.subn("TRAFOOF", "", code)
+            traori, trafoof = n_on > 0, n_off > 0
+        words = self.tokens(code)
+        return self.execute(words, traori, trafoof, raw.strip(), comments)
 
-    state = _Blocks(text, line, letter, value, n_lines, source)
-    state.check_words(skipped)
-    codes = state.g_codes(skipped)
-    for group in _MODAL_GROUPS:
-        state.at_most_one(np.isin(codes, group), "G")
+    def tokens(self, code: str) -> list[tuple[str, str]]:
+        if "#" in code or "[" in code or "=" in code:
+            at = min(i for i in (code.find("#"), code.find("["), code.find("=")) if i >= 0)
+            self.fail("macros and variables (#, [ ], =) are not supported",
+                      _word_at(code, at))
+        control = _CONTROL.match(code)
+        if control:
+            self.fail("subroutines and control flow (O-word " + control.group(1).lower()
+                      + ") are not supported", control.group())
+        words, pos = [], 0
+        for match in _WORD.finditer(code):
+            if match.start() != pos:
+                break
+            words.append((match.group(1), match.group(2)))
+            pos = match.end()
+        if pos != len(code):
+            char = code[pos]
+            if char.isascii() and char.isalpha():
+                bad = _word_at(code, pos)
+                self.fail(f"cannot parse number {bad!r}", bad)
+            if char in "0123456789.+-" and words:
+                start = pos - len("".join(words[-1]))
+                bad = _word_at(code, start)
+                self.fail(f"cannot parse number {bad!r}", bad)
+            self.fail(f"cannot parse {_word_at(code, pos)!r}")
+        return words
 
-    is_g = letter == ord("G")
-    motion = state.per_line(is_g & np.isin(codes, (0, 10)), codes)         # 0, 10 or NaN
-    dwell = state.per_line(is_g & (codes == 40), codes) == 40
-    distance = state.ffill(state.per_line(is_g & np.isin(codes, (900, 910)), codes), 900)
-    units = state.ffill(state.per_line(is_g & np.isin(codes, (200, 210)), codes), 210)
-    scale = np.where(units == 200, INCH, 1.0)
-    f_word = state.per_line(letter == ord("F"))
-    has_f = ~np.isnan(f_word)
-    if np.any(f_word[has_f] <= 0):
-        row = int(np.flatnonzero(has_f & ~(f_word > 0))[0])
-        state.fail(row, f"feed must be positive, got F{f_word[row]:g}", "F")
-    feed = state.ffill(f_word * scale / 60.0, np.nan)
-    p_word = state.per_line(letter == ord("P"))
-    both = dwell & ~np.isnan(motion)
-    stray_p = ~np.isnan(p_word) & ~dwell
-    state.fail_first([(both, "dwell (G4) and a motion code in one block", "G"),
-                      (stray_p, "unsupported word {word} (P is read only with G4)", "P")])
-    motion = state.ffill(motion, -1.0)
-
-    axis_values = np.column_stack([state.per_line(letter == ord(a)) for a in AXIS_WORDS])
-    # G4's X word is the dwell time, not a position
-    moving = (~np.isnan(axis_values)).any(axis=1) & ~dwell
-    state.fail_first([(moving & (motion < 0), "axis words before any motion code (G0 or G1)",
-                       "G")])
-
-    rows = np.flatnonzero(moving)
-    v = axis_values[rows]
-    v[:, :3] *= scale[rows, None]
-    q = _positions(v, distance[rows] == 910)
-    q[:, 3:] = np.radians(q[:, 3:])
-    rapid = motion[rows] == 0
-    P, O = kinematics.forward(q)
-    return finish(P, O, np.where(rapid, np.nan, feed[rows]), lines=rows + 1, source=source,
-                  format="gcode", empty="no motion (no G0/G1 block with an axis word)",
-                  rapid=rapid, skipped=skipped, axes=q)
-
-
-def _positions(v: np.ndarray, incremental: np.ndarray) -> np.ndarray:
-    """Axis positions after each motion block from its words ``v`` (NaN: not given) and
-    distance mode; an axis keeps its value when not given, and starts at 0."""
-    present = ~np.isnan(v)
-    inc = present & incremental[:, None]
-    absolute = present & ~incremental[:, None]
-    # position = (last absolute value - increments up to it) + increments up to now
-    summed = np.cumsum(np.where(inc, v, 0.0), axis=0)
-    base = np.where(absolute, v - summed, np.nan)
-    k = np.arange(v.shape[0])[:, None]
-    last = np.maximum.accumulate(np.where(absolute, k, -1), axis=0)
-    base = np.where(last >= 0, np.take_along_axis(base, np.maximum(last, 0), axis=0), 0.0)
-    return np.where(absolute, v, base + summed)
-
-
-def _parse_numbers(rows: bytes, n: int) -> np.ndarray | None:
-    """Parse ``n`` numbers, one per line; None if any is malformed or missing."""
-    if n == 0:
-        return np.empty(0)
-    try:
-        table = pacsv.read_csv(
-            io.BytesIO(rows),
-            read_options=pacsv.ReadOptions(column_names=["v"]),
-            convert_options=pacsv.ConvertOptions(column_types={"v": pa.float64()},
-                                                 null_values=[]))
-    except pa.ArrowInvalid:
-        return None
-    values = table.column("v").to_numpy(zero_copy_only=False)
-    return values if values.size == n else None
-
-
-def _raise_syntax(text: str, source: str):
-    """Locate and word the first syntax error of cleaned text."""
-    bad = _BAD.search(text)
-    if bad is None:  # the byte checks and the grammar disagree; never return wrong data
-        raise ToolPathError("cannot parse the program", source=source)
-    row = _line_at(text, bad.start())
-    word = re.match(r"[^\n]*", text[bad.start():]).group()
-    if bad.group():  # a letter with a bad number
-        word = re.match(r"[A-Z][^A-Z\n]*", word).group()
-        raise ToolPathError(f"cannot parse number {word!r}", source=source, row=row,
-                            field=word[0])
-    raise ToolPathError(f"cannot parse {word!r}", source=source, row=row)
-
-
-def _line_at(text: str, position: int) -> int:
-    return text.count("\n", 0, position) + 1
-
-
-class _Blocks:
-    """Per-block (line) views of the word tokens, and errors naming the first bad line."""
-
-    def __init__(self, text, line, letter, value, n_lines, source):
-        self.text, self.line, self.letter, self.value = text, line, letter, value
-        self.n_lines, self.source = n_lines, source
-        allowed = np.frombuffer(("GFP" + "".join(AXIS_WORDS) + "".join(sorted(IGNORED_WORDS)))
-                                .encode(), dtype=np.uint8)
-        self.unknown = ~np.isin(letter, allowed)
-        self.codes = np.where(letter == ord("G"), np.rint(value * 10.0), np.nan)
-
-    def word(self, row: int, letter: str) -> str:
-        """The first word with ``letter`` on 0-based line ``row``, as written (cleaned)."""
-        text = self.text.split("\n", row + 1)[row]
-        match = re.search(letter + r"[^A-Z]*", text)
-        return repr(match.group()) if match else letter
-
-    def fail(self, row: int, message: str, field: str | None = None):
-        raise ToolPathError(message.format(word=self.word(row, field or "?")),
-                            source=self.source, row=row + 1, field=field)
-
-    def fail_first(self, candidates):
-        """Raise for the first line flagged by any (mask per line, message, field)."""
-        best = None
-        for mask, message, field in candidates:
-            hits = np.flatnonzero(mask)
-            if hits.size and (best is None or hits[0] < best[0]):
-                best = (int(hits[0]), message, field)
-        if best is not None:
-            self.fail(*best)
-
-    def per_line(self, mask: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
-        """Value of the (single) masked token of each line, NaN where there is none."""
-        out = np.full(self.n_lines, np.nan)
-        out[self.line[mask]] = (self.value if values is None else values)[mask]
-        return out
-
-    @staticmethod
-    def ffill(per_line: np.ndarray, initial: float) -> np.ndarray:
-        """Carry each line's value forward over lines without one (modal state)."""
-        k = np.where(np.isnan(per_line), -1, np.arange(per_line.size))
-        k = np.maximum.accumulate(k)
-        return np.where(k >= 0, per_line[np.maximum(k, 0)], initial)
-
-    def at_most_one(self, mask: np.ndarray, field: str):
-        counts = np.bincount(self.line[mask], minlength=self.n_lines)
-        if (counts > 1).any():
-            row = int(np.flatnonzero(counts > 1)[0])
-            tokens = np.flatnonzero(mask & (self.line == row))
-            if field == "G":
-                names = [_CODE_NAMES.get(int(c), "G?") for c in self.codes[tokens]]
-                self.fail(row, f"two codes of one modal group ({', '.join(names)}) in one "
-                               "block", "G")
-            self.fail(row, f"word {field} appears twice in the block", field)
-
-    def check_words(self, skipped: Counter):
-        """Reject unknown words (after any G-code error on an earlier or the same line) and
-        repeated value words; count the ignored ones."""
-        for ch in (*AXIS_WORDS, "F", "P"):
-            self.at_most_one(self.letter == ord(ch), ch)
-        for ch in IGNORED_WORDS:
-            mask = self.letter == ord(ch)
-            if ch == "N" or not mask.any():
+    def execute(self, words, traori, trafoof, raw, comments) -> bool:
+        values: dict[str, float] = {}
+        spelled: dict[str, str] = {}
+        g_codes: list[tuple[int, str]] = []
+        m_codes: list[tuple[int, str]] = []
+        for letter, number in words:
+            word = letter + number
+            if letter == "G":
+                g_codes.append((int(round(float(number) * 10)), word))
+            elif letter == "M":
+                m_codes.append((int(round(float(number) * 10)), word))
+            elif letter in ("N", "O"):
                 continue
-            if ch == "M":
-                codes, counts = np.unique(self.value[mask], return_counts=True)
-                skipped.update({f"M{_code(c)}": int(k) for c, k in zip(codes, counts)})
+            elif letter in values:
+                self.fail(f"word {letter} appears twice in the block", word)
             else:
-                skipped[ch] += int(mask.sum())
+                value = float(number)
+                if not math.isfinite(value):
+                    self.fail(f"value is not finite in {word!r}", word)
+                values[letter] = value
+                spelled[letter] = word
+        # G codes: check, then apply the modes in execution order (RS274/NGC).
+        seen_groups = {}
+        motion_here = None
+        dwell = False
+        for code, word in g_codes:
+            if code in _UNSUPPORTED_G:
+                self.fail(_UNSUPPORTED_G[code], word)
+            if code not in _MOTION and code not in PASSTHROUGH_G and code not in _MODE_G:
+                if 730 <= code <= 890 and code != 800:
+                    self.fail(f"canned cycles ({word}) are not supported", word)
+                self.fail(f"unsupported G code {_g_name(code)}", word)
+            for group_index, group in enumerate(_MODAL_GROUPS):
+                if code in group:
+                    if group_index in seen_groups:
+                        self.fail(f"two codes of one modal group ({seen_groups[group_index]}, "
+                                  f"{_g_name(code)}) in one block", word)
+                    seen_groups[group_index] = _g_name(code)
+        moves_axes = False
+        for letter in spelled:
+            if letter in self.axis_index:
+                moves_axes = True
+            elif letter not in "FIJKRPQ" and letter not in _PASSTHROUGH_WORDS:
+                self.fail(f"unsupported word {spelled[letter]!r} (axes are "
+                          f"{' '.join(self.axes)})", spelled[letter])
+        for code, word in m_codes:
+            if code % 10:
+                self.fail(f"unsupported M code {word}", word)
+            number = code // 10
+            if number in _SUBROUTINE_M:
+                self.fail(_SUBROUTINE_M[number], word)
+            if number not in _KNOWN_M and number not in self.unknown_m:
+                self.unknown_m.add(number)
+                self.notices.append(f"{self.source}, line {self.row}: M{number} is not a code "
+                                    "precontour knows; kept as a pass-through line")
+            self.skipped[f"M{number}"] += 1
+        codes = {code for code, _ in g_codes}
+        kept = []  # words an output program keeps, as written, in their order
+        for letter, number in words:
+            if letter == "G":
+                code = int(round(float(number) * 10))
+                if code in PASSTHROUGH_G:
+                    kept.append(letter + number)
+                    self.skipped[_g_name(code)] += 1
+            elif letter == "M" or letter in _PASSTHROUGH_WORDS:
+                if letter != "M":
+                    self.skipped[letter] += 1
+                # H goes with G43; with G43.4/G43.5 (TCP, not kept) it would stand alone
+                if letter != "H" or 430 in codes:
+                    kept.append(letter + number)
 
-    def g_codes(self, skipped: Counter) -> np.ndarray:
-        """G code numbers in tenths (G43.4 -> 434; NaN for other words), after rejecting
-        unsupported codes and unknown words, whichever comes first in the file."""
-        is_g = self.letter == ord("G")
-        codes = self.codes
-        ignored = {int(_code10(g)) for g in IGNORED_G}
-        known = {0, 10, 40, 200, 210, 900, 910, 940} | ignored
-        bad_g = is_g & ~np.isin(codes, sorted(known))
-        candidates = []
-        g_rows = np.full(self.n_lines, False)
-        if bad_g.any():
-            t = int(np.flatnonzero(bad_g)[0])
-            name = "G" + _code(self.value[t])
-            message = _UNSUPPORTED_G.get(name, f"unsupported G code {name}")
-            g_rows[self.line[t]] = True
-            candidates.append((g_rows, message.replace("{", "{{").replace("}", "}}"), "G"))
-        if self.unknown.any():
-            t = int(np.flatnonzero(self.unknown)[0])
-            rows = np.full(self.n_lines, False)
-            rows[self.line[t]] = True
-            ch = chr(self.letter[t])
-            # a G-code error on the same line explains more (e.g. G2 before its I J words)
-            rows &= ~g_rows
-            candidates.append((rows, "unsupported word {word} (axes are "
-                               f"{' '.join(AXIS_WORDS)})", ch))
-        self.fail_first(candidates)
-        ign = is_g & np.isin(codes, sorted(ignored))
-        if ign.any():
-            values, counts = np.unique(codes[ign], return_counts=True)
-            skipped.update({f"G{_code(c / 10.0)}": int(k) for c, k in zip(values, counts)})
-        return codes
+        if 200 in codes:
+            self.inch = True
+        if 210 in codes:
+            self.inch = False
+        scale = INCH if self.inch else 1.0
+        if 930 in codes:
+            self.inverse_time = True
+        if 940 in codes:
+            self.inverse_time = False
+            self.feed = math.nan
+        f_word = values.get("F")
+        if f_word is not None:
+            if not f_word > 0:
+                self.fail(f"feed must be positive, got {spelled['F']}", spelled["F"])
+            if not self.inverse_time:
+                self.feed = f_word * scale
+        if 40 in codes:
+            dwell = True
+        if 900 in codes:
+            self.incremental = False
+        if 910 in codes:
+            self.incremental = True
+        if 901 in codes:
+            self.arc_absolute = True
+        if 911 in codes:
+            self.arc_absolute = False
+        if 640 in codes:
+            self.path_tolerance = values["P"] * scale if "P" in values else math.nan
+        if 610 in codes or 611 in codes:
+            self.path_tolerance = 0.0
+        for code in (170, 180, 190):
+            if code in codes:
+                self.plane = _PLANES[code]
+        if 434 in codes or 435 in codes or traori:
+            self.set_tcp(True)
+        if (490 in codes or trafoof) and not self.tcp_all:
+            self.set_tcp(False)
+        for code in codes:
+            if code in _MOTION:
+                motion_here = _MOTION[code]
+        if motion_here is not None:
+            self.motion = motion_here
+
+        # word checks that depend on the codes
+        arc_words = [spelled[k] for k in "IJKR" if k in spelled]
+        is_arc = self.motion in (2, 3) and (moves_axes or motion_here in (2, 3)) and not dwell
+        if arc_words and not is_arc:
+            self.fail(f"word {arc_words[0]!r} is read only with G2/G3", arc_words[0])
+        if "P" in spelled and not (dwell or 640 in codes or is_arc):
+            self.fail(f"unsupported word {spelled['P']!r} (P is read with G4, G64, G2/G3)",
+                      spelled["P"])
+        if "Q" in spelled and 640 not in codes:
+            self.fail(f"unsupported word {spelled['Q']!r} (Q is read with G64)", spelled["Q"])
+
+        if dwell:
+            if motion_here is not None:
+                self.fail("dwell (G4) and a motion code in one block", "G4")
+            seconds = values.get("P", values.get("X"))
+            extra = [spelled[a] for a in self.axes if a in spelled and a != "X"]
+            if "P" in values and "X" in values:
+                extra.insert(0, spelled["X"])
+            if extra:
+                self.fail(f"axis word {extra[0]!r} in a dwell (G4) block", extra[0])
+            if seconds is None or not seconds >= 0:
+                self.fail("dwell (G4) needs a time P (seconds) >= 0", "G4")
+            self.stops.append(Stop(self.n_moves, self.row, "dwell", float(seconds)))
+        elif moves_axes:
+            self.move(values, spelled, scale, g_codes)
+
+        end = False
+        for code, word in m_codes:
+            kind = _STOP_M.get(code // 10)
+            if kind is not None:
+                self.stops.append(Stop(self.n_moves, self.row, kind))
+                end = end or kind == "end"
+        if kept or comments:
+            motion_words = moves_axes or dwell or "F" in spelled or any(
+                code not in PASSTHROUGH_G for code in codes) or traori or trafoof
+            if motion_words:
+                text = " ".join(kept + [f"({c.strip()})" for c in comments if c.strip()])
+            else:
+                text = raw
+            if text:
+                self.passthrough.append((self.row, text))
+        return end
+
+    # ------------------------------------------------------------------ modes
+    def set_tcp(self, on: bool):
+        if on == self.tcp:
+            return
+        if all(math.isfinite(v) for v in self.prog):
+            q = self.machine_axes(np.array([self.prog]), np.array([self.tcp]))[0]
+            if on:
+                P, _ = self.kinematics.forward(q)
+                self.prog = [*map(float, np.asarray(P).reshape(3)), *self.prog[3:]]
+            else:
+                self.prog = [*map(float, q[:3]), *self.prog[3:]]
+        else:
+            # the linear axes' meaning changes; unknown rotary axes leave them unknown
+            self.prog = [math.nan] * 3 + self.prog[3:]
+        self.tcp = on
+
+    def machine_axes(self, prog: np.ndarray, tcp: np.ndarray) -> np.ndarray:
+        """Machine axes (mm, rad) of programmed coordinates (mm, deg) in either mode."""
+        q = np.array(prog, dtype=float)
+        q[:, 3:] = np.radians(q[:, 3:])
+        if tcp.any():
+            q[tcp, :3] = linear_axes(self.kinematics, q[tcp, :3], q[tcp, 3:])
+        return q
+
+    # ------------------------------------------------------------------ motion
+    def move(self, values, spelled, scale, g_codes):
+        if self.motion is None:
+            self.fail("axis words before any motion code (G0, G1, G2, G3)",
+                      next(spelled[a] for a in self.axes if a in spelled))
+        target = list(self.prog)
+        for i, letter in enumerate(self.axes):
+            if letter in values:
+                value = values[letter] * (scale if i < 3 else 1.0)
+                if self.incremental:
+                    if not math.isfinite(target[i]):
+                        self.fail(f"incremental (G91) move of axis {letter} before its "
+                                  "position is known", spelled[letter])
+                    value += target[i]
+                if not abs(value) < 1e9:
+                    self.fail(f"coordinate {spelled[letter]!r} is out of range", spelled[letter])
+                target[i] = value
+        rapid = self.motion == 0
+        if self.start is None:
+            if all(math.isfinite(v) for v in target):
+                # the block that completes the axes ends where the machine starts from
+                if self.motion in (2, 3):
+                    self.fail("the first block that sets all axes is an arc: its start "
+                              "point is unknown; position with G0 first",
+                              g_codes[0][1] if g_codes else None)
+                self.prog = target
+                self.begin(self.row)
+                return
+            if rapid:
+                self.prog = target
+                return
+            # a feed move before all axes are known: the unknown ones are 0
+            missing = [self.axes[i] for i in range(5) if not math.isfinite(self.prog[i])]
+            self.notices.append(f"{self.source}, line {self.row}: axes {' '.join(missing)} "
+                                "were not programmed before the first feed move; taken as 0")
+            self.prog = [0.0 if not math.isfinite(v) else v for v in self.prog]
+            target = [0.0 if not math.isfinite(v) else v for v in target]
+            self.begin(self.row)
+        if self.motion in (2, 3):
+            self.arc(target, values, spelled, scale)
+            return
+        duration, feed = math.nan, math.nan
+        if not rapid:
+            duration, feed = self.timing(self.prog, target, 1, spelled)
+        self.add(target, rapid, duration, feed)
+
+    def begin(self, row):
+        self.start = list(self.prog)
+        self.start_line = row
+        self.start_tcp = self.tcp
+
+    def timing(self, start, end, n_pieces, spelled, length=None):
+        """(duration s, feed mm/s) of each of ``n_pieces`` equal pieces of a feed move."""
+        if self.inverse_time:
+            if "F" not in spelled:
+                self.fail("inverse-time feed (G93) needs F on every G1/G2/G3 block", "F")
+            return 60.0 / float(spelled["F"][1:]) / n_pieces, math.nan
+        if not math.isfinite(self.feed):
+            self.fail("feed move without a feed rate: program F (G94, per minute)",
+                      f"G{self.motion}")
+        if length is None:
+            length = math.dist(start[:3], end[:3])
+        if length <= 0.0:
+            length = math.dist(start[3:], end[3:])  # rotary only: F in degrees per minute
+        return 60.0 * length / self.feed / n_pieces, self.feed / 60.0
+
+    def add(self, target, rapid, duration, feed):
+        self.ends.append(target)
+        self.rapid.append(rapid)
+        self.duration.append(duration)
+        self.feeds.append(feed)
+        self.lines.append(self.row)
+        self.tcp_moves.append(self.tcp)
+        self.tolerances.append(self.path_tolerance)
+        self.prog = list(target)
+        self.n_moves += 1
+
+    def seal(self):
+        """Move the single moves collected so far into a chunk (keeps the program order)."""
+        if self.ends:
+            self.chunks.append((np.array(self.ends, dtype=float).reshape(-1, 5),
+                                np.array(self.rapid, dtype=bool),
+                                np.array(self.duration, dtype=float),
+                                np.array(self.feeds, dtype=float),
+                                np.array(self.lines, dtype=np.int64),
+                                np.array(self.tcp_moves, dtype=bool),
+                                np.array(self.tolerances, dtype=float)))
+            self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
+            self.lines, self.tcp_moves, self.tolerances = [], [], []
+
+    def add_many(self, ends, rapid, duration, feed, lines):
+        """Append k moves at once (arrays of k rows; scalars are broadcast)."""
+        self.seal()
+        k = ends.shape[0]
+        self.chunks.append((np.asarray(ends, dtype=float),
+                            np.broadcast_to(np.asarray(rapid, dtype=bool), (k,)),
+                            np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
+                            np.broadcast_to(np.asarray(feed, dtype=float), (k,)),
+                            np.broadcast_to(np.asarray(lines, dtype=np.int64), (k,)),
+                            np.full(k, self.tcp), np.full(k, self.path_tolerance)))
+        self.prog = ends[-1].tolist()
+        self.n_moves += k
+
+    def arc(self, target, values, spelled, scale):
+        a, b, n = self.plane
+        centre_words = ("IJK"[a], "IJK"[b])
+        start = self.prog
+        sa, sb, ea, eb = start[a], start[b], target[a], target[b]
+        if "R" in values:
+            if any(w in spelled for w in "IJK"):
+                self.fail("an arc is given by R or by I J K, not both", spelled["R"])
+            radius = values["R"] * scale
+            chord = math.hypot(ea - sa, eb - sb)
+            if chord == 0.0:
+                self.fail("an R arc cannot be a full circle (start = end); use I J K",
+                          spelled["R"])
+            h2 = radius * radius - 0.25 * chord * chord
+            if h2 < 0.0:
+                if 0.5 * chord - abs(radius) > max(ARC_RADIUS_TOLERANCE,
+                                                   ARC_RADIUS_RTOL * abs(radius)):
+                    self.fail(f"arc radius {abs(radius):g} mm is shorter than half the chord "
+                              f"({0.5 * chord:g} mm)", spelled["R"])
+                h2 = 0.0
+            h = math.sqrt(h2) / chord
+            # centre on the left of the chord for a counter-clockwise short arc
+            side = (1.0 if self.motion == 3 else -1.0) * (1.0 if radius > 0 else -1.0)
+            ca = 0.5 * (sa + ea) - side * h * (eb - sb)
+            cb = 0.5 * (sb + eb) + side * h * (ea - sa)
+        else:
+            offsets = [values.get(w) for w in centre_words]
+            if offsets[0] is None and offsets[1] is None:
+                self.fail(f"arc without centre: G{self.motion} in this plane needs "
+                          f"{centre_words[0]}/{centre_words[1]} or R",
+                          f"G{self.motion}")
+            oa, ob = ((o or 0.0) * scale for o in offsets)
+            ca, cb = (oa, ob) if self.arc_absolute else (sa + oa, sb + ob)
+            normal_word = "IJK"[n]
+            if normal_word in spelled:
+                self.fail(f"word {spelled[normal_word]!r} is not in the arc's plane",
+                          spelled[normal_word])
+        r0 = math.hypot(sa - ca, sb - cb)
+        r1 = math.hypot(ea - ca, eb - cb)
+        if r0 == 0.0:
+            self.fail("arc radius is zero (the centre is the start point)", f"G{self.motion}")
+        if abs(r1 - r0) > max(ARC_RADIUS_TOLERANCE, ARC_RADIUS_RTOL * r0):
+            self.fail(f"arc start and end radii differ by {abs(r1 - r0):.6g} mm (start "
+                      f"{r0:.6g}, end {r1:.6g}; tolerance {ARC_RADIUS_TOLERANCE:g} mm or "
+                      f"{ARC_RADIUS_RTOL:g} of the radius)", f"G{self.motion}")
+        theta0 = math.atan2(sb - cb, sa - ca)
+        theta1 = math.atan2(eb - cb, ea - ca)
+        ccw = self.motion == 3
+        sweep = (theta1 - theta0) % (2 * math.pi) if ccw else -((theta0 - theta1) % (2 * math.pi))
+        if math.hypot(ea - sa, eb - sb) <= 1e-12 * max(1.0, r0):
+            sweep = 2 * math.pi if ccw else -2 * math.pi
+        turns = values.get("P")
+        if turns is not None:
+            if turns != int(turns) or turns < 1:
+                self.fail(f"arc turns {spelled['P']!r} must be a whole number >= 1",
+                          spelled["P"])
+            sweep += math.copysign(2 * math.pi * (turns - 1), sweep)
+        r_max = max(r0, r1)
+        tol = min(self.arc_tolerance, 0.5 * r_max)
+        step = 2.0 * math.acos(1.0 - tol / r_max)
+        n_chords = max(1, math.ceil(abs(sweep) / step - 1e-9))
+        if abs(sweep) > math.pi / 2:
+            n_chords = max(n_chords, math.ceil(abs(sweep) / (math.pi / 2)))
+        if n_chords > MAX_ARC_CHORDS:
+            self.fail(f"arc needs {n_chords} chords (more than {MAX_ARC_CHORDS}) within "
+                      f"{self.arc_tolerance:g} mm", f"G{self.motion}")
+        u = np.arange(1, n_chords + 1) / n_chords
+        angle = theta0 + sweep * u
+        radius = r0 + (r1 - r0) * u
+        points = np.array(start, dtype=float) + u[:, None] * (np.array(target) - start)
+        points[:, a] = ca + radius * np.cos(angle)
+        points[:, b] = cb + radius * np.sin(angle)
+        points[-1] = target
+        helix = math.hypot(0.5 * (r0 + r1) * abs(sweep), target[n] - start[n])
+        duration, feed = self.timing(start, target, n_chords, spelled, length=helix)
+        self.add_many(points, False, duration, feed, self.row)
+
+    # ------------------------------------------------------------------ result
+    def finish(self) -> Program:
+        if self.start is None or not self.n_moves:
+            raise ProgramError("no motion: no move after a block that sets all axes "
+                               f"({' '.join(self.axes)})", source=self.source)
+        self.seal()
+        ends, rapid, duration, feed, lines, tcp, tolerance = (np.concatenate(parts)
+                                                              for parts in zip(*self.chunks))
+        q = self.machine_axes(ends, tcp)
+        start = self.machine_axes(np.array([self.start]), np.array([self.start_tcp]))[0]
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any() or not np.isfinite(start).all():
+            k = int(np.flatnonzero(bad)[0]) if bad.any() else 0
+            raise ProgramError("the kinematics gives no machine axes for this tool tip",
+                               source=self.source, row=int(lines[k]))
+        return Program(start=start, start_line=self.start_line, q=q,
+                       rapid=rapid, duration=duration, feed=feed, line=lines, tcp_move=tcp,
+                       stops=tuple(self.stops), passthrough=tuple(self.passthrough),
+                       source=self.source, tcp=bool(tcp.any() or self.tcp_all),
+                       axes=self.axes, notices=tuple(self.notices),
+                       skipped=MappingProxyType(dict(self.skipped)),
+                       path_tolerance=tolerance)
 
 
-def _code10(name: str) -> float:
-    return round(float(name[1:]) * 10.0)
+def _ffill(values: np.ndarray, initial: float) -> np.ndarray:
+    """Carry each value forward over the NaNs after it (modal state); ``initial`` before the
+    first value."""
+    index = np.where(np.isnan(values), -1, np.arange(values.size))
+    index = np.maximum.accumulate(index)
+    return np.where(index >= 0, values[np.maximum(index, 0)], initial)
 
 
-def _code(value) -> str:
-    """Canonical spelling of a G or M number: ``01`` -> ``1``, ``43.40`` -> ``43.4``."""
-    number = float(value)
-    return f"{number:g}" if number == int(number) else f"{number:.10g}"
+def linear_axes(kinematics, P: np.ndarray, rotary: np.ndarray) -> np.ndarray:
+    """Linear axes X, Y, Z (mm, shape (N, 3)) that put the tool tip at ``P`` (N, 3) with the
+    rotary axes at ``rotary`` (N, 2) rad.
+
+    At fixed rotary angles the direct kinematics is affine in the linear axes,
+    P = M(rotary) [X, Y, Z] + b(rotary), so four evaluations of ``forward`` give M and b and
+    one batched 3x3 solve the axes; no machine-specific inverse is needed. A kinematics that
+    has its own ``linear_axes(P, rotary)`` (or ``linear_axes(P, A, C)``) is asked directly
+    (the same numbers, about four times faster).
+    """
+    P = np.asarray(P, dtype=float).reshape(-1, 3)
+    rotary = np.asarray(rotary, dtype=float).reshape(-1, 2)
+    own = getattr(kinematics, "linear_axes", None)
+    if own is not None:
+        n_args = len(inspect.signature(own).parameters)
+        if n_args == 2:
+            return np.asarray(own(P, rotary), dtype=float).reshape(-1, 3)
+        if n_args == 3:
+            return np.asarray(own(P, rotary[:, 0], rotary[:, 1]), dtype=float).reshape(-1, 3)
+    return _linear_axes_from_forward(kinematics, P, rotary)
+
+
+def _linear_axes_from_forward(kinematics, P, rotary):
+    n = P.shape[0]
+    q = np.zeros((4, n, 5))
+    q[:, :, 3:] = rotary
+    for i in range(3):
+        q[i + 1, :, i] = 1.0
+    tips, _ = kinematics.forward(q)
+    b = tips[0]
+    m0, m1, m2 = tips[1] - b, tips[2] - b, tips[3] - b
+    # Cramer's rule with cross products: x_i = (m_j x m_k) . r / det, vectorized over samples
+    c12, c20, c01 = np.cross(m1, m2), np.cross(m2, m0), np.cross(m0, m1)
+    det = np.einsum("ij,ij->i", m0, c12)
+    r = P - b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.stack([np.einsum("ij,ij->i", c12, r), np.einsum("ij,ij->i", c20, r),
+                         np.einsum("ij,ij->i", c01, r)], axis=-1) / det[:, None]
+
+
+def _word_at(code: str, pos: int) -> str:
+    """The text from ``pos`` up to the next letter (the bad word as written)."""
+    match = re.match(r".[^A-Z]*", code[pos:])
+    return match.group() if match else code[pos:]
+
+
+def _g_name(code: int) -> str:
+    return f"G{code // 10}" if code % 10 == 0 else f"G{code // 10}.{code % 10}"
+
+
+def _axis_letters(machine) -> tuple[str, ...]:
+    axes = getattr(getattr(machine, "kinematics", None), "axes", None)
+    if axes is None:
+        drives = getattr(machine, "drives", None)
+        if drives:
+            axes = tuple(getattr(d, "axis", a) for d, a in zip(drives, AXIS_WORDS))
+    axes = tuple(axes or AXIS_WORDS)
+    return axes if len(axes) == 5 else AXIS_WORDS
 
 
 def _kinematics(machine):
@@ -373,3 +794,37 @@ def _kinematics(machine):
         raise InputError("reading G-code needs a machine whose kinematics has forward(q); "
                          f"got {type(machine).__name__}", field="machine")
     return kinematics
+
+
+# ---------------------------------------------------------------------- ToolPath view
+
+
+def read_gcode(path: str | Path, machine, *, block_delete: bool = True, tcp: bool = False):
+    """The program's points (start and every move end, arcs subdivided) as a
+    :class:`~precontour.toolpath.ToolPath`; see :func:`read_gcode_report`."""
+    return read_gcode_report(path, machine, block_delete=block_delete, tcp=tcp).toolpath
+
+
+def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True,
+                      tcp: bool = False) -> ReadReport:
+    """:func:`read_program` seen as a tool path: P, O (direct kinematics) of the start and
+    every move end, the feed (mm/s) of the move ending at each point (G93 blocks: tip chord
+    length over block time; NaN for rapids), lines, rapid flags, machine axes."""
+    if isinstance(machine, (str, Path)):
+        from ..machine.machine_file import load_machine
+        machine = load_machine(machine)
+    program = read_program(path, machine, tcp=tcp, block_delete=block_delete)
+    kinematics = _kinematics(machine)
+    q = program.points
+    P, O = kinematics.forward(q)
+    feed = np.concatenate([[np.nan], program.feed])
+    timed = np.isnan(feed[1:]) & ~program.rapid
+    if timed.any():
+        chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            feed[1:][timed] = chord[timed] / program.duration[timed]
+        feed[1:][timed & ~(feed[1:] > 0)] = np.nan
+    lines = np.concatenate([[program.start_line], program.line])
+    rapid = np.concatenate([[True], program.rapid])
+    return finish(P, O, feed, lines=lines, source=program.source, format="gcode",
+                  empty="no motion", rapid=rapid, skipped=program.skipped, axes=q)

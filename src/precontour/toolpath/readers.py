@@ -48,7 +48,7 @@ def toolpath_format(path: str | Path) -> str:
 
 
 def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
-                  format: str | None = None):
+                  format: str | None = None, tcp: bool = False):
     """Read a tool path file of any supported format.
 
     Parameters
@@ -60,20 +60,26 @@ def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
         name or machine file path is loaded. Ignored for CL data.
     feed_units : {"mm/min", "mm/s"}
         Unit of CL-data feeds that carry none (CSV ``F`` column, bare APT ``FEDRAT``).
-        G-code feeds are always per minute (G94) and ignore it.
+        G-code carries its own (G93 inverse time, G94 per minute) and ignores it. A G-code
+        program read this way is its points only; :func:`~precontour.toolpath.read_program`
+        gives the whole program (block times, stops, pass-through lines), which
+        :func:`~precontour.trajectory.program_trajectory` times as a CNC does.
     format : {"clcsv", "apt", "gcode"}, optional
         Override the extension.
+    tcp : bool
+        G-code only: the whole program is in tool centre point mode (see
+        :func:`~precontour.toolpath.gcode.read_program`).
 
     Returns
     -------
     ToolPath
     """
     return read_toolpath_report(path, machine=machine, feed_units=feed_units,
-                                format=format).toolpath
+                                format=format, tcp=tcp).toolpath
 
 
 def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "mm/min",
-                         format: str | None = None) -> ReadReport:
+                         format: str | None = None, tcp: bool = False) -> ReadReport:
     """Like :func:`read_toolpath`, returning the :class:`ReadReport` (line of each point,
     rapid flags, duplicates dropped, skipped statements, G-code axis positions)."""
     if format is None:
@@ -88,4 +94,4 @@ def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "m
     if machine is None:
         raise ToolPathError("G-code gives machine-axis positions: reading it needs a machine "
                             "(machine=...)", source=str(path))
-    return read_gcode_report(path, machine)
+    return read_gcode_report(path, machine, tcp=tcp)

@@ -2,7 +2,8 @@
 
 A :class:`Trajectory` holds axis commands q(t) = [X, Y, Z, A, C] sampled uniformly at the servo
 period, and optionally the reference tool tip P(t) and orientation O(t) they were made from
-(needed for contour errors). Compensation returns a Trajectory too, with new q and the same
+(needed for contour errors) and, for a trajectory made from an NC program, the source line of
+the block executing at each sample. Compensation returns a Trajectory too, with new q and the same
 reference.
 """
 
@@ -33,12 +34,16 @@ class Trajectory:
         Reference tool tip in the workpiece frame, mm.
     O : ndarray, shape (N, 3), optional
         Reference unit tool orientation in the workpiece frame.
+    line : ndarray of int, shape (N,), optional
+        Source line of the NC-program block executing at each sample (trajectories made
+        from a program); kept by :meth:`with_axes`.
     """
 
     t: np.ndarray
     q: np.ndarray
     P: np.ndarray | None = None
     O: np.ndarray | None = None
+    line: np.ndarray | None = None
 
     def __post_init__(self):
         t = np.asarray(self.t, dtype=float)
@@ -55,6 +60,11 @@ class Trajectory:
                 if value.shape != (t.size, 3):
                     raise ValueError(f"Trajectory.{name} must have shape (N, 3), got {value.shape}")
                 object.__setattr__(self, name, value)
+        if self.line is not None:
+            line = np.asarray(self.line)
+            if line.shape != t.shape:
+                raise ValueError(f"Trajectory.line must have shape (N,), got {line.shape}")
+            object.__setattr__(self, "line", line.astype(np.int64, copy=False))
         if (self.P is None) != (self.O is None):
             raise ValueError("Trajectory needs both P and O, or neither")
 

@@ -1,0 +1,135 @@
+"""An NC program as the machine executes it: moves in machine axes, stops, and the lines an
+output program keeps.
+
+:class:`Program` is what :func:`precontour.toolpath.read_program` returns and what
+:func:`precontour.trajectory.program_trajectory` times and the program writers re-emit. Arcs
+are already subdivided into chords (each chord a move with the arc's source line); tool
+centre point (TCP) moves are already converted to machine axes, and flagged, because their
+interpolation between end points runs in the tool-tip frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["Program", "Stop", "STOP_KINDS"]
+
+#: What makes the program stop, as :attr:`Stop.kind`.
+STOP_KINDS = ("dwell", "program stop", "optional stop", "tool change", "end")
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A point where the program stops: the axes come to rest there.
+
+    Attributes
+    ----------
+    index : int
+        Number of moves executed before the stop (it happens at the end of move
+        ``index - 1``, or at the start when 0).
+    line : int
+        1-based source line of the block that stops.
+    kind : str
+        One of :data:`STOP_KINDS` (G4, M0, M1, M6, M2/M30).
+    seconds : float
+        Programmed dwell time (G4 P or X), s; NaN for the other kinds (the trajectory holds
+        them for its ``dwell``).
+    """
+
+    index: int
+    line: int
+    kind: str
+    seconds: float = float("nan")
+
+
+@dataclass(frozen=True)
+class Program:
+    """A parsed NC program in machine axes.
+
+    Attributes
+    ----------
+    start : ndarray, shape (5,)
+        Machine axes q = [X, Y, Z, A, C] (mm, rad) at the start: the first block after which
+        all five axes are known (axes never programmed before the first feed move are 0).
+    start_line : int
+        Source line of that block.
+    q : ndarray, shape (M, 5)
+        Machine axes at the end of each move, mm and rad. Rotary axes as programmed
+        (negative A, multi-turn C, never re-branched).
+    rapid : ndarray of bool, shape (M,)
+        True for G0 moves (timed by the machine's rapid rate, i.e. its axis velocity limits).
+    duration : ndarray, shape (M,)
+        Programmed time of each feed move, s: 60/F for G93 (inverse time), path length / F
+        for G94; NaN for rapids. A subdivided arc shares its time equally among its chords.
+    feed : ndarray, shape (M,)
+        Programmed G94 feed, mm/s (deg/s for a rotary-only move); NaN for G93 and rapids.
+    line : ndarray of int, shape (M,)
+        1-based source line of the block that programmed each move.
+    tcp_move : ndarray of bool, shape (M,)
+        Move programmed in TCP mode: tool tip and rotary axes interpolate linearly in the
+        workpiece frame, the linear axes follow from the kinematics.
+    stops : tuple of Stop
+        Program stops, in program order.
+    passthrough : tuple of (int, str)
+        (source line, text) of the non-motion content an output program keeps: comments,
+        tool change, spindle, coolant, other M codes and mode words (G17-G19, G40, G43, G49,
+        G54-G59, G61, G64, G80). A line that also moves keeps only those words.
+    source : str
+        File name.
+    tcp : bool
+        True when any move was programmed in TCP mode (``--tcp`` or G43.4/G43.5/TRAORI).
+    axes : tuple of str
+        Axis letters of q (the machine's), e.g. ``("X", "Y", "Z", "A", "C")``.
+    notices : tuple of str
+        One-line notices for the user (unknown M codes kept as pass-through, axes taken as 0).
+    skipped : Mapping[str, int]
+        Codes and words read and not acted on, with counts (``{"M3": 1, "S": 1, "/": 2}``).
+    path_tolerance : ndarray, shape (M,)
+        Path tolerance in force at each move, mm: G64 P, 0 under G61/G61.1 (exact path), NaN
+        where the program gives none (the trajectory's default applies).
+    """
+
+    start: np.ndarray
+    start_line: int
+    q: np.ndarray
+    rapid: np.ndarray
+    duration: np.ndarray
+    feed: np.ndarray
+    line: np.ndarray
+    tcp_move: np.ndarray
+    stops: tuple[Stop, ...] = ()
+    passthrough: tuple[tuple[int, str], ...] = ()
+    source: str = ""
+    tcp: bool = False
+    axes: tuple[str, ...] = ("X", "Y", "Z", "A", "C")
+    notices: tuple[str, ...] = ()
+    skipped: Mapping[str, int] = field(default_factory=lambda: MappingProxyType({}))
+    path_tolerance: np.ndarray | None = None
+
+    def __post_init__(self):
+        m = np.asarray(self.q).reshape(-1, 5).shape[0]
+        if self.path_tolerance is None:
+            object.__setattr__(self, "path_tolerance", np.full(m, np.nan))
+        for name, dtype in (("q", float), ("rapid", bool), ("duration", float),
+                            ("feed", float), ("line", np.int64), ("tcp_move", bool),
+                            ("path_tolerance", float)):
+            value = np.asarray(getattr(self, name), dtype=dtype)
+            value = value.reshape(m, 5) if name == "q" else value.reshape(m)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        start = np.asarray(self.start, dtype=float).reshape(5)
+        start.setflags(write=False)
+        object.__setattr__(self, "start", start)
+
+    @property
+    def n_moves(self) -> int:
+        return int(self.q.shape[0])
+
+    @property
+    def points(self) -> np.ndarray:
+        """Start and every move's end point, shape (M + 1, 5)."""
+        return np.concatenate([self.start[None, :], self.q])

@@ -1,0 +1,468 @@
+"""Timing an NC program as a CNC executes it: :func:`program_trajectory`.
+
+The program (:class:`~precontour.toolpath.program.Program`) is a chain of linear moves in
+machine axes (arcs already cut into chords); each has a programmed time (G93: 60/F; G94:
+length / F) or, for a rapid, none. The time law is built the way FIR-interpolating CNCs do it
+(Tajima & Sencer; LinuxCNC's and most look-aheads produce the same kind of motion):
+
+1. **Segments.** The program splits at rapids and stops into segments that start and end at
+   rest. Consecutive rapids form one segment; so do consecutive feed moves.
+2. **Nominal motion.** Within a segment each move takes its programmed time, or longer where
+   an axis would exceed its velocity limit (rapids: as fast as the slowest axis allows, i.e.
+   the machine's rapid rate within its axis limits). The nominal axis commands move at constant
+   speed along each block -- linearly in the axes, or, for a TCP move, linearly in the tool tip
+   and the rotary axes with the linear axes from the kinematics -- and are sampled at the servo
+   period.
+3. **Jerk limiting.** Two moving averages in time, of lengths T1 and T2, filter each axis: the
+   velocity steps between blocks become ramps, so |a| <= dv/T1 and |j| <= dv/(T1 T2) for a
+   velocity step dv. T1 and T2 are the shortest the segment's largest step allows on every
+   axis: T1 = max(dv_i/a_i, sqrt(dv_i/j_i)), T2 = max(dv_i/j_i)/T1. Averaging never raises a
+   velocity, so velocity limits hold.
+4. **Check and slow down.** Every sample is checked against each axis's velocity, acceleration
+   and jerk limit (finite differences at the servo period, rest before and after the
+   segment). Where a limit is exceeded (velocity steps adding up within T1, or a TCP move
+   whose linear axes speed up mid-block), the blocks feeding that sample are slowed by the
+   ratio, and the segment is filtered again.
+
+**Corners between linear blocks** are blended by the filters, as a CNC blends within a
+tolerance: a velocity step dv at a corner displaces the path by at most dv * r across each
+leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
+(T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (the program's
+G64 P; 0 under G61/G61.1; else ``tolerance``, default :data:`DEFAULT_TOLERANCE`), the two
+blocks are slowed near the corner (long blocks are cut one filter window from each end, so
+that only their ends slow down); where it would take a slow-down below :data:`SHARP_CORNER`
+of the speed, the axes stop at the corner instead, which costs less time (about one filter
+window) and passes through it exactly. **Block times are kept** otherwise: every block runs
+in its programmed time, and a segment lasts the sum of its block times plus T1 + T2 (the
+filters' start-up and run-out), because a moving average delays the motion by half its
+length and does not stretch it.
+
+Why not the CL-path planner (:mod:`.pathspline` + :mod:`.feedplan`): it runs an interpolating
+quintic spline through every point and plans its own feed along it. A program's blocks are
+straight lines with given times; through a corner such a spline overshoots (it has no
+tolerance), and its feed plan would not keep the block times. The limits and the sample
+check tolerance are shared with it.
+
+The reference tool path P, O is the direct kinematics of the filtered axis commands: the
+interpolated program path as the machine is told to move, rapids included.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import PrecontourError
+from .feedplan import CHECK_RTOL, axis_limits
+from .generate import DEFAULT_DWELL
+from .sampled import Trajectory
+
+#: The plan aims this fraction below each axis limit; the check uses the full limits.
+MARGIN = 0.98
+#: Default corner tolerance, mm: the blend of a corner passes within this of it.
+DEFAULT_TOLERANCE = 0.01
+#: A corner whose blend would need the speed cut below this fraction is a stop instead.
+SHARP_CORNER = 0.5
+#: Corner blends below this (mm) are round-off, not corners.
+BLEND_ROUND_OFF = 1e-9
+#: Planning passes per segment before giving up.
+MAX_PASSES = 30
+#: Largest number of samples a program's trajectory may have (memory guard: 5 * 10^7 samples
+#: are about 14 hours at 1 kHz and 9 GB of arrays).
+MAX_SAMPLES = 50_000_000
+
+__all__ = ["program_trajectory", "DEFAULT_TOLERANCE", "MARGIN", "MAX_SAMPLES"]
+
+
+def program_trajectory(program, machine, *, ts: float | None = None,
+                       dwell: float = DEFAULT_DWELL,
+                       tolerance: float | None = DEFAULT_TOLERANCE,
+                       max_samples: int = MAX_SAMPLES) -> Trajectory:
+    """Axis commands at the servo period that execute ``program`` on ``machine``.
+
+    Parameters
+    ----------
+    program : Program
+        From :func:`precontour.toolpath.read_program`.
+    machine : Machine
+        Kinematics (``forward``) and drive limits ``v_max``, ``a_max``, ``j_max`` (a rapid
+        needs ``v_max`` on the axes it moves).
+    ts : float, optional
+        Sampling period, s (default: the machine's servo period).
+    dwell : float
+        Seconds the axes are held at rest at a program stop (M0, M1, M6) and at the end, so
+        that the drives settle inside the trajectory; G4 holds its own time.
+    tolerance : float or None
+        Largest distance, mm, by which the blend of a corner between two blocks may leave
+        the programmed path (at the tool tip for TCP blocks, in the linear axes otherwise),
+        where the program sets none; ``None``: blend as the limits allow there. The
+        program's own G64 P, and G61/G61.1 (exact path: stop at every corner), take
+        precedence.
+    max_samples : int
+        Refuse programs whose trajectory would be longer (memory guard).
+
+    Returns
+    -------
+    Trajectory
+        ``t`` from 0 at step ``ts``; ``q`` the filtered axis commands; ``P``, ``O`` their
+        direct kinematics; ``line`` the source line of the block executing at each sample
+        (the block whose nominal motion the filter window is centred on; a stop's line while
+        it holds).
+
+    Raises
+    ------
+    PrecontourError
+        A rapid on an axis without a velocity limit, a trajectory longer than
+        ``max_samples``, or limits that could not be met (naming the program line).
+    """
+    ts = float(machine.servo_period if ts is None else ts)
+    if not (math.isfinite(ts) and ts > 0):
+        raise ValueError(f"ts must be positive and finite, got {ts!r}")
+    if not (math.isfinite(dwell) and dwell >= 0):
+        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    limits = np.stack(axis_limits(machine))          # (3, 5): v, a, j
+    points = program.points
+    dq = np.diff(points, axis=0)
+    durations = _nominal_durations(program, dq, limits[0])
+
+    n_moves = program.n_moves
+    holds = _holds(program, dwell, ts)
+    bounds = _segment_bounds(program)
+    estimate = (durations.sum() + sum(h for _, h, _ in holds) * ts) / ts + len(bounds) * 50
+    if not estimate <= max_samples:
+        raise PrecontourError(f"{program.source}: the program's trajectory would have about "
+                              f"{estimate:.3g} samples at ts = {ts:g} s, more than "
+                              f"{max_samples}; raise ts or split the program")
+
+    if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance must be positive and finite (or None), got {tolerance!r}")
+    context = _Context(program, machine.kinematics, points, dq, limits, ts, tolerance)
+    pieces_q, pieces_line = [np.asarray(points[:1])], [np.array([program.start_line])]
+    hold_at = {}
+    for index, n_hold, line in holds:
+        hold_at.setdefault(index, []).append((n_hold, line))
+
+    def hold(index):
+        for n_hold, line in hold_at.get(index, ()):
+            if n_hold:
+                pieces_q.append(np.repeat(pieces_q[-1][-1:], n_hold, axis=0))
+                pieces_line.append(np.full(n_hold, line, dtype=np.int64))
+
+    hold(0)
+    for k0, k1 in bounds:
+        q_seg, line_seg = context.segment(k0, k1, durations[k0:k1].copy())
+        # The first sample is the previous one, at rest; two more samples at rest after the
+        # segment keep the jerk of one segment's stop and the next one's start apart (each
+        # was checked against rest on its own).
+        pieces_q.append(np.concatenate([q_seg[1:], np.repeat(q_seg[-1:], 2, axis=0)]))
+        pieces_line.append(np.concatenate([line_seg[1:], np.repeat(line_seg[-1:], 2)]))
+        hold(k1)
+    q = np.concatenate(pieces_q)
+    line = np.concatenate(pieces_line)
+    P, O = machine.kinematics.forward(q)
+    t = np.arange(q.shape[0]) * ts
+    return Trajectory(t=t, q=q, P=P, O=O, line=line)
+
+
+def _nominal_durations(program, dq, v_max):
+    """Each move's time before jerk limiting: programmed, or longer where an axis would
+    exceed its velocity limit; a rapid as fast as its slowest axis allows."""
+    moving = dq != 0.0
+    rapid = program.rapid
+    unlimited = moving & ~np.isfinite(v_max)
+    bad = rapid & unlimited.any(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        axis = program.axes[int(np.flatnonzero(unlimited[k])[0])]
+        raise PrecontourError(f"{program.source}, line {program.line[k]}: a rapid (G0) "
+                              f"moves axis {axis}, which has no velocity limit v_max in the "
+                              "machine file (the rapid rate)")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        by_limit = np.where(moving, np.abs(dq) / (MARGIN * v_max), 0.0).max(axis=1)
+    programmed = np.where(rapid, 0.0, np.nan_to_num(program.duration, nan=0.0))
+    return np.maximum(programmed, by_limit)
+
+
+def _holds(program, dwell, ts):
+    """(move index, samples to hold, line) for every stop, and the final dwell."""
+    holds = []
+    for stop in program.stops:
+        if stop.index == 0 and stop.line < program.start_line:
+            continue  # before the start (e.g. the first tool change): not part of the motion
+        seconds = stop.seconds if stop.kind == "dwell" else dwell
+        holds.append((stop.index, int(round(seconds / ts)), stop.line))
+    ends_with_hold = any(s.index == program.n_moves and s.kind != "dwell"
+                         for s in program.stops)
+    if not ends_with_hold:
+        holds.append((program.n_moves, int(round(dwell / ts)), int(program.line[-1])))
+    return holds
+
+
+def _segment_bounds(program):
+    """(first move, end move) of each segment: split where rapid and feed moves meet and at
+    every stop."""
+    n = program.n_moves
+    split = np.zeros(n + 1, dtype=bool)
+    split[0] = split[n] = True
+    split[1:n] |= program.rapid[1:] != program.rapid[:-1]
+    for stop in program.stops:
+        split[stop.index] = True
+    edges = np.flatnonzero(split)
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+class _Context:
+    """What every segment needs: the program's moves, the kinematics and the limits."""
+
+    def __init__(self, program, kinematics, points, dq, limits, ts, tolerance):
+        self.program, self.kinematics = program, kinematics
+        self.points, self.dq, self.limits, self.ts = points, dq, limits, ts
+        default = math.inf if tolerance is None else tolerance
+        self.tolerance = np.where(np.isnan(program.path_tolerance), default,
+                                  program.path_tolerance)
+        self.tcp = program.tcp_move
+        self.tips, _ = kinematics.forward(points)
+
+    def filter_lengths(self, k0, k1, durations):
+        """Samples n1, n2 of the two moving averages: the shortest that keep the segment's
+        largest velocity step within every axis's acceleration and jerk limit."""
+        v_lim, a_lim, j_lim = self.limits * MARGIN
+        velocity = self.dq[k0:k1] / np.where(durations > 0, durations, np.inf)[:, None]
+        padded = np.concatenate([np.zeros((1, 5)), velocity, np.zeros((1, 5))])
+        step = np.abs(np.diff(padded, axis=0)).max(axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = max(np.nanmax(np.where(step > 0, step / a_lim, 0.0)),
+                     np.nanmax(np.where(step > 0, np.sqrt(step / j_lim), 0.0)))
+            t2 = np.nanmax(np.where(step > 0, step / j_lim, 0.0)) / t1 if t1 > 0 else 0.0
+        return (max(1, math.ceil(t1 / self.ts - 1e-9)),
+                max(1, math.ceil(t2 / self.ts - 1e-9)))
+
+    def pieces(self, k0, k1, durations, window):
+        """Cut every move longer than three filter windows at one window from each end, so
+        that a slow-down at a corner stays near the corner. Returns the pieces' durations,
+        their move, and the nodes (axes, tool tip) at their ends, start node first."""
+        long = durations > 3.0 * window
+        count = np.where(long, 3, 1)
+        move = np.repeat(np.arange(k0, k1), count)
+        first = np.cumsum(count) - count
+        u_end = np.ones(move.size)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            edge = window / durations[long]
+        u_end[first[long]] = edge
+        u_end[first[long] + 1] = 1.0 - edge
+        u_start = np.zeros(move.size)
+        inner = np.ones(move.size, dtype=bool)
+        inner[first] = False
+        u_start[inner] = u_end[np.flatnonzero(inner) - 1]
+        piece_durations = (u_end - u_start) * durations[move - k0]
+        node_q = self.points[move] + u_end[:, None] * self.dq[move]
+        node_tip = self.tips[move] + u_end[:, None] * (self.tips[move + 1] - self.tips[move])
+        cut = u_end < 1.0
+        tcp = self.tcp[move]
+        if (cut & tcp).any():
+            from ..toolpath.gcode import linear_axes
+            k = cut & tcp
+            node_q[k, :3] = linear_axes(self.kinematics, node_tip[k], node_q[k, 3:])
+        if (cut & ~tcp).any():
+            k = cut & ~tcp
+            node_tip[k] = self.kinematics.forward(node_q[k])[0]
+        node_q = np.concatenate([self.points[k0:k0 + 1], node_q])
+        node_tip = np.concatenate([self.tips[k0:k0 + 1], node_tip])
+        return piece_durations, move, node_q, node_tip
+
+    def corner_factors(self, durations, node_path, reach, tolerance):
+        """Per corner between consecutive pieces, the speed factor (<= 1) that keeps its blend
+        within the tolerance. The moving averages displace a corner by dv * reach (dv the
+        velocity step, reach = integral of tau h(tau) over tau > 0 for their combined kernel
+        h), so the blend leaves each leg by at most ``reach`` times the part of dv across
+        that leg; a speed change along a straight line leaves the path alone. Where the path
+        turns back by more than a right angle, the blend also falls short of the corner
+        point, by up to ``reach`` times the whole step.
+        ``node_path`` is the tool tip (TCP pieces) or the linear axes (the others) at the
+        pieces' ends."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            velocity = np.diff(node_path, axis=0) / durations[:, None]
+        velocity[~(durations > 0)] = 0.0
+        speed = np.linalg.norm(velocity, axis=1)
+        factor = np.ones(max(durations.size - 1, 0))
+        # Pieces at rest in this frame (a pure rotation, a repeated point) are passed over:
+        # the corner is between the moving pieces on either side of them.
+        moving = np.flatnonzero(speed > 0)
+        if moving.size < 2:
+            return factor
+        v, w = velocity[moving[:-1]], velocity[moving[1:]]
+        d_v, d_w = v / speed[moving[:-1], None], w / speed[moving[1:], None]
+        step = w - v
+        across = np.zeros(step.shape[0])
+        for d in (d_v, d_w):
+            along = np.einsum("ij,ij->i", step, d)[:, None] * d
+            across = np.maximum(across, np.linalg.norm(step - along, axis=1))
+        # Turning back by more than a right angle, the blend falls short of the corner point
+        # along the legs too (a full reversal: only along them): count the whole step.
+        back = np.einsum("ij,ij->i", d_v, d_w) < 0.0
+        across[back] = np.linalg.norm(step[back], axis=1)
+        blend = across * reach
+        blend[blend < BLEND_ROUND_OFF] = 0.0   # round-off of a straight line cut into pieces
+        span = moving[1:] - moving[:-1]        # corners from one moving piece to the next
+        corner_tolerance = np.minimum.reduceat(tolerance[moving[0]:moving[-1]],
+                                               np.cumsum(span) - span)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pair = np.where(blend > 0, np.minimum(1.0, corner_tolerance / blend), 1.0)
+        factor[moving[0]:moving[-1]] = np.repeat(pair, span)
+        return factor
+
+    def blend_within_tolerance(self, durations, node_path, reach, tolerance):
+        """Slow the pieces on both sides of each corner by its factor (a few rounds: slowing
+        one corner changes its neighbours' steps)."""
+        for _ in range(4):
+            # a corner that cannot be a stop (the segment's own ends) slows at most this much
+            factor = np.maximum(self.corner_factors(durations, node_path, reach, tolerance),
+                                SHARP_CORNER)
+            if factor.min(initial=1.0) >= 1.0 - 1e-12:
+                break
+            slow = np.ones(durations.size)
+            slow[:-1] = factor
+            slow[1:] = np.minimum(slow[1:], factor)
+            durations = durations / slow
+        return durations
+
+    def nominal(self, node_t, node_q, node_tip, piece_tcp, n):
+        """Nominal axis commands at n + 1 samples j*ts over the segment, axis-major (5, n + 1)
+        so that every per-axis pass runs over contiguous memory, and the piece each sample is
+        in."""
+        tau = np.arange(n + 1) * self.ts
+        q = np.empty((5, n + 1))
+        for i in range(5):
+            q[i] = np.interp(tau, node_t, node_q[:, i])
+        piece = np.searchsorted(node_t[1:-1], tau, side="right")
+        tcp = piece_tcp[piece]
+        if tcp.any():
+            from ..toolpath.gcode import linear_axes
+            tip = np.stack([np.interp(tau[tcp], node_t, node_tip[:, i]) for i in range(3)],
+                           axis=1)
+            q[:3, tcp] = linear_axes(self.kinematics, tip, q[3:, tcp].T).T
+        q[:, -1] = node_q[-1]
+        return q, piece
+
+    def segment(self, k0, k1, durations):
+        """Filtered commands and line numbers of moves k0..k1-1, from rest to rest."""
+        ts = self.ts
+        if durations.sum() <= 0.0:  # nothing moves (zero-length rapids)
+            return (np.repeat(self.points[k1][None], 2, axis=0),
+                    np.full(2, self.program.line[k1 - 1]))
+        n1, n2 = self.filter_lengths(k0, k1, durations)
+        window = (n1 + n2) * ts
+        reach = _reach(n1, n2) * ts
+        durations, move, node_q, node_tip = self.pieces(k0, k1, durations, window)
+        piece_tcp = self.tcp[move]
+        piece_tolerance = self.tolerance[move]
+        if np.isfinite(piece_tolerance).any():
+            # the tighter tolerance of the two blocks meeting at a corner applies
+            tolerance = np.minimum(piece_tolerance[:-1], piece_tolerance[1:])
+            # each piece's path in the frame it is interpolated in (its end node decides)
+            node_path = node_q[:, :3].copy()
+            tcp_nodes = np.concatenate([piece_tcp[:1], piece_tcp])
+            node_path[tcp_nodes] = node_tip[tcp_nodes]
+            factor = self.corner_factors(durations, node_path, reach, tolerance)
+            sharp = np.flatnonzero(factor < SHARP_CORNER)
+            if sharp.size:
+                # Slowing down for a sharp corner costs more than stopping at it (about one
+                # filter window): the segment stops there, with no blend at all.
+                at = sorted({int(move[c]) + 1 for c in sharp} - {k0, k1})
+                if at:
+                    return self._split(k0, k1, at, durations, move)
+            durations = self.blend_within_tolerance(durations, node_path, reach, tolerance)
+        lines = self.program.line[move]
+        for _ in range(MAX_PASSES):
+            total = durations.sum()
+            n = max(1, math.ceil(total / ts - 1e-9))
+            # stretch to a whole number of samples (never faster than planned)
+            node_t = np.concatenate([[0.0], np.cumsum(durations * (n * ts / total))])
+            q_nom, piece = self.nominal(node_t, node_q, node_tip, piece_tcp, n)
+            q = _box(_box(q_nom, n1, n1 + n2 - 2), n2, 0)
+            ratio, worst = _violations(q, ts, self.limits)
+            if worst <= 1.0 + CHECK_RTOL:
+                lag = (n1 + n2 - 2) // 2
+                at = np.clip(np.arange(q.shape[1]) - lag, 0, n)
+                return q.T, lines[piece[at]]
+            # slow down every piece whose nominal motion feeds an offending sample
+            reach = n1 + n2
+            bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
+            lo = piece[np.clip(bad - reach - 1, 0, n)]
+            hi = piece[np.clip(bad + 2, 0, n)]
+            factor = np.ones(durations.size)
+            runs = np.flatnonzero(np.diff(bad) > 1)
+            starts = np.concatenate([[0], runs + 1])
+            stops = np.concatenate([runs + 1, [bad.size]])
+            for a, b in zip(starts.tolist(), stops.tolist()):
+                f = ratio[bad[a:b]].max() / MARGIN
+                seg = slice(int(lo[a:b].min()), int(hi[a:b].max()) + 1)
+                factor[seg] = np.maximum(factor[seg], f)
+            durations = durations * factor
+        raise PrecontourError(f"{self.program.source}, line {self.program.line[k0]}: the "
+                              f"axis limits could not be met after {MAX_PASSES} passes (worst "
+                              f"ratio {worst:.6g})")
+
+    def _split(self, k0, k1, at, durations, move):
+        """Segments k0..at[0], at[0]..at[1], ..., each from rest to rest, joined like the
+        program's own segments."""
+        per_move = np.zeros(k1 - k0)
+        np.add.at(per_move, move - k0, durations)  # the pieces' (programmed) times
+        edges = [k0, *at, k1]
+        parts_q, parts_line = [], []
+        for a, b in zip(edges[:-1], edges[1:]):
+            q, line = self.segment(a, b, per_move[a - k0:b - k0].copy())
+            if parts_q:
+                parts_q.append(np.repeat(parts_q[-1][-1:], 2, axis=0))
+                parts_line.append(np.repeat(parts_line[-1][-1:], 2))
+                q, line = q[1:], line[1:]
+            parts_q.append(q)
+            parts_line.append(line)
+        return np.concatenate(parts_q), np.concatenate(parts_line)
+
+
+
+def _reach(n1, n2):
+    """Integral of tau h(tau) over tau > 0, in samples, for the combined kernel h of moving
+    averages of n1 and n2 samples (centred): how far a velocity step displaces a corner."""
+    kernel = np.convolve(np.full(n1, 1.0 / n1), np.full(n2, 1.0 / n2))
+    tau = np.arange(kernel.size) - 0.5 * (kernel.size - 1)
+    return float(np.sum(np.where(tau > 0, tau * kernel, 0.0)))
+
+
+def _box(x, n, pad):
+    """Moving average of ``n`` samples along axis 1 of ``x`` (axes, samples) padded with
+    ``pad`` copies of its first and last samples ('valid' part: x.shape[1] + 2 pad - n + 1
+    samples)."""
+    if pad:
+        x = np.concatenate([np.repeat(x[:, :1], pad, axis=1), x,
+                            np.repeat(x[:, -1:], pad, axis=1)], axis=1)
+    if n == 1:
+        return x
+    # running sums relative to the first sample keep the round-off at the motion's own scale
+    first = x[:, :1]
+    c = np.zeros((x.shape[0], x.shape[1] + 1))
+    np.cumsum(x - first, axis=1, out=c[:, 1:])
+    return (c[:, n:] - c[:, :-n]) * (1.0 / n) + first
+
+
+def _violations(q, ts, limits):
+    """Per sample of ``q`` (axes, samples), the largest ratio of an axis derivative (orders
+    1-3, finite differences, at rest before and after) to its limit; and the overall worst."""
+    ext = np.concatenate([np.repeat(q[:, :1], 3, axis=1), q, np.repeat(q[:, -1:], 3, axis=1)],
+                         axis=1)
+    n = q.shape[1]
+    ratio = np.zeros(n)
+    d = ext
+    for order in (1, 2, 3):
+        d = np.diff(d, axis=1)
+        scaled = np.abs(d) * (1.0 / (ts**order * limits[order - 1]))[:, None]
+        r = np.maximum.reduce(scaled, axis=0)
+        # difference i spans ext samples i..i+order, i.e. q samples i-3..i+order-3
+        for shift in range(order + 1):
+            first = 3 - shift           # difference feeding q sample 0
+            lo, hi = max(0, -first), min(n, r.size - first)
+            if hi > lo:
+                np.maximum(ratio[lo:hi], r[lo + first:hi + first], out=ratio[lo:hi])
+    return ratio, float(ratio.max(initial=0.0))

@@ -1,0 +1,473 @@
+"""Tests of the G-code program reader (precontour.toolpath.gcode.read_program) and its
+tool-path view; numbers are checked against hand-worked values, the circle equation, the
+machine's direct kinematics and a sequential reference interpreter."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from precontour.errors import InputError, PrecontourError, ProgramError
+from precontour.machine.machine_file import load_machine
+from precontour.toolpath import read_gcode, read_gcode_report, read_program, read_toolpath
+from precontour.toolpath.gcode import (ARC_CHORD_TOLERANCE, ARC_RADIUS_TOLERANCE,
+                                       linear_axes)
+
+DATA = Path(__file__).parent / "data"
+INCH = 25.4
+deg = np.radians
+
+
+@pytest.fixture(scope="module")
+def machine():
+    return load_machine("zhang2013")
+
+
+def write(tmp_path: Path, text: str, name: str = "prog.ngc") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def read(tmp_path, machine, text, **kwargs):
+    return read_program(write(tmp_path, text), machine, **kwargs)
+
+
+# --------------------------------------------------------------------------- everyday text
+
+
+def test_fixture_program(machine):
+    program = read_program(DATA / "blade_finish.nc", machine)
+    assert program.start_line == 7
+    np.testing.assert_array_equal(program.start, [0, 0, 150, 0, 0])
+    expected_q = [[0, 0, 120, 0, 0], [0, 0, 100, 0, 0],
+                  [10.5, -2.25, 100, 0, 0], [10.5, -2.25, 100, deg(5), deg(10)],
+                  [12.75, -1.5, 99.5, deg(10), deg(20)], [12.75, -0.75, 99.5, deg(10), deg(20)],
+                  [15, -0.75, 99.5, deg(15), deg(30)], [15, -0.75, 99.5, deg(15), deg(30)],
+                  [15, -0.75, 150, deg(15), deg(30)]]
+    np.testing.assert_allclose(program.q, expected_q, rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(program.line, [8, 9, 10, 11, 12, 14, 15, 16, 17])
+    np.testing.assert_array_equal(program.rapid, [1, 0, 0, 0, 0, 0, 0, 0, 1])
+    # G94: XYZ length / F; a rotary-only move: degrees / F (deg/min); line 16 repeats line 15
+    expected_t = [np.nan, 20 / 10, math.hypot(10.5, 2.25) / 10, math.hypot(5, 10) / 20,
+                  math.dist((10.5, -2.25, 100), (12.75, -1.5, 99.5)) / 20, 0.75 / 20, 2.25 / 20,
+                  0.0, np.nan]
+    np.testing.assert_allclose(program.duration, expected_t, rtol=1e-14)
+    assert [(s.index, s.line, s.kind) for s in program.stops] == [(0, 5, "tool change"),
+                                                                 (9, 19, "end")]
+    kept = dict(program.passthrough)
+    assert kept[2] == "O1001 (BLADE FINISH - 5X MACHINE AXES)"
+    assert kept[4] == "G17 G40 G49 G80"
+    assert kept[5] == "N20 T1 M6"
+    assert kept[6] == "N30 S12000 M3"
+    assert kept[8] == "G43 H1"
+    assert kept[3] == "(POST: GENERIC A-C TRUNNION)"
+    assert kept[9] == "(plunge)" and kept[14] == "(modal X Z A C)"
+    assert kept[18] == "N140 M5" and kept[19] == "N150 M30"
+    assert 13 not in kept and program.skipped["/"] == 1
+    assert program.notices == () and not program.tcp
+
+
+def test_toolpath_view_matches_forward_kinematics(machine):
+    report = read_gcode_report(DATA / "blade_finish.nc", machine)
+    program = read_program(DATA / "blade_finish.nc", machine)
+    keep = np.r_[True, np.any(np.diff(program.points, axis=0) != 0, axis=1)]
+    np.testing.assert_allclose(report.axes, program.points[keep], rtol=0, atol=0)
+    P, O = machine.kinematics.forward(program.points[keep])
+    np.testing.assert_allclose(report.toolpath.P, P, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(report.toolpath.O, O, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(report.toolpath.feed[:3], [np.nan, np.nan, 10.0])
+    assert read_toolpath(DATA / "blade_finish.nc", machine=machine).n_points == keep.sum()
+
+
+def test_rotate_first_then_position_is_the_start(machine, tmp_path):
+    program = read(tmp_path, machine, "G90 G21\nG0 A30 C-45\nG0 X10 Y20 Z50\nG1 X20 F600\n")
+    assert program.start_line == 3
+    np.testing.assert_allclose(program.start, [10, 20, 50, deg(30), deg(-45)], atol=1e-15)
+    np.testing.assert_allclose(program.q, [[20, 20, 50, deg(30), deg(-45)]], atol=1e-15)
+    np.testing.assert_allclose(program.duration, [1.0])
+
+
+def test_feed_move_before_all_axes_known_takes_them_as_zero(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X1 Y2 Z3\nG1 X4 F60\n")
+    np.testing.assert_array_equal(program.start, [1, 2, 3, 0, 0])
+    assert "line 2: axes A C were not programmed before the first feed move" in program.notices[0]
+
+
+def _interpret(blocks):
+    """Sequential reference interpreter of G90/G91/G20/G21 blocks."""
+    q = np.zeros(5)
+    inc, scale, out = False, 1.0, []
+    for codes, words in blocks:
+        inc = True if "G91" in codes else False if "G90" in codes else inc
+        scale = INCH if "G20" in codes else 1.0 if "G21" in codes else scale
+        for j, name in enumerate("XYZAC"):
+            if name in words:
+                value = words[name] * (scale if j < 3 else 1.0)
+                q[j] = q[j] + value if inc else value
+        out.append(q.copy())
+    q = np.array(out)
+    q[:, 3:] = np.radians(q[:, 3:])
+    return q
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_g90_g91_g20_g21_match_a_sequential_interpreter(machine, tmp_path, seed):
+    rng = np.random.default_rng(seed)
+    blocks = [((), {"X": 0.0, "Y": 0.0, "Z": 0.0, "A": 0.0, "C": 0.0})]
+    text = ["G0 X0 Y0 Z0 A0 C0"]
+    for k in range(200):
+        codes = [c for c in (rng.choice(["", "G90", "G91"]), rng.choice(["", "G20", "G21"])) if c]
+        names = [a for a in "XYZAC" if rng.random() < 0.5] or ["X"]
+        words = {a: round(float(rng.uniform(-2, 2)), 4) for a in names}
+        blocks.append((codes, words))
+        text.append(f"N{k} " + " ".join(codes) + (" G1" if k == 0 else "") + " "
+                    + " ".join(f"{a}{v:.4f}" for a, v in words.items()) + " F500")
+    program = read(tmp_path, machine, "\n".join(text))
+    np.testing.assert_allclose(program.q, _interpret(blocks)[1:], rtol=0, atol=1e-9)
+
+
+def test_inch_feed_and_crlf_lowercase(machine, tmp_path):
+    path = tmp_path / "w.nc"
+    path.write_bytes(b"%\r\n(dos file)\r\ng20 g0 x1 y2 z3 a0 c0\r\n\r\ng1 x4 f120\r\n%\r\n")
+    program = read_program(path, machine)
+    np.testing.assert_allclose(program.q[0, :3], [4 * INCH, 2 * INCH, 3 * INCH])
+    np.testing.assert_allclose(program.duration, [3 * INCH / (120 * INCH) * 60])
+    np.testing.assert_array_equal(program.line, [5])
+
+
+def test_dwell_stops_and_block_delete(machine, tmp_path):
+    text = ("G0 X0 Y0 Z50 A0 C0 ; start\ng04 p0.5\nG4 X2.0 (Fanuc: X is seconds)\n"
+            "/G1 X5 F100\nG1 X10. Y-.5 F 300.\nM0\nX11\nM1\nM30\nG1 X99\n")
+    program = read(tmp_path, machine, text)
+    assert [(s.index, s.line, s.kind) for s in program.stops] == [
+        (0, 2, "dwell"), (0, 3, "dwell"), (1, 6, "program stop"), (2, 8, "optional stop"),
+        (2, 9, "end")]
+    assert [s.seconds for s in program.stops][:2] == [0.5, 2.0]
+    np.testing.assert_array_equal(program.q[:, 0], [10, 11])  # nothing read after M30
+    program = read(tmp_path, machine, text, block_delete=False)
+    np.testing.assert_array_equal(program.q[:, 0], [5, 10, 11])
+
+
+def test_unknown_m_codes_are_kept_with_one_notice(machine, tmp_path):
+    text = "M428 ;TCP on\nG0 X0 Y0 Z0 A0 C0\nM428\nM7 M8\nG1 X1 F60 M9\nM429\n"
+    program = read(tmp_path, machine, text)
+    assert len(program.notices) == 2
+    assert program.notices[0].endswith("prog.ngc, line 1: M428 is not a code precontour "
+                                       "knows; kept as a pass-through line")
+    assert dict(program.passthrough) == {1: "M428 ;TCP on", 3: "M428", 4: "M7 M8", 5: "M9",
+                                         6: "M429"}
+
+
+def test_g93_and_g94_switching(machine, tmp_path):
+    text = ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X10 F30\nY5 A10 F120\nG94 G1 X20 F600\n"
+            "G3 X30 Y15 R10 \nG93 G2 X20 Y5 I-10 J0 F6\nG94 G0 Z10\nG1 A20 F10\n")
+    program = read(tmp_path, machine, text)
+    arc = program.line == 5
+    arc2 = program.line == 6
+    np.testing.assert_allclose(program.duration[:3], [2.0, 0.5, 1.0])
+    # quarter circle of radius 10 at 600 mm/min
+    np.testing.assert_allclose(program.duration[arc].sum(), 0.5 * math.pi * 10 / 10)
+    np.testing.assert_allclose(program.duration[arc2].sum(), 10.0)
+    np.testing.assert_allclose(program.feed[arc], 10.0)
+    assert np.isnan(program.feed[arc2]).all()
+    assert program.rapid[-2] and np.isnan(program.duration[-2])
+    np.testing.assert_allclose(program.duration[-1], 10 / 10 * 60)  # 10 deg at 10 deg/min
+
+
+# --------------------------------------------------------------------------- arcs
+
+
+def _arc_checks(points, centre, radius, tol=ARC_CHORD_TOLERANCE):
+    """Every chord end on the circle, every chord within the chord tolerance of it."""
+    r = np.linalg.norm(points - centre, axis=1)
+    np.testing.assert_allclose(r, radius, rtol=0, atol=1e-9)
+    mid = 0.5 * (points[1:] + points[:-1])
+    sag = radius - np.linalg.norm(mid - centre, axis=1)
+    assert sag.max() <= tol * (1 + 1e-9)
+    assert sag.max() > 0.3 * tol  # not needlessly fine
+
+
+@pytest.mark.parametrize("plane, words, centre_words, cw_view", [
+    ("G17", ("X", "Y", "Z"), ("I", "J"), 1),
+    ("G18", ("Z", "X", "Y"), ("K", "I"), 1),
+    ("G19", ("Y", "Z", "X"), ("J", "K"), 1),
+])
+def test_quarter_arcs_in_each_plane_by_ijk_and_r(machine, tmp_path, plane, words, centre_words,
+                                                 cw_view):
+    a, b, n = ("XYZ".index(w) for w in words)
+    # start at (10, 0) in the plane's (first, second) axes, centre at the origin
+    start = np.zeros(3)
+    start[a] = 10.0
+    for code, end_b in (("G2", -10.0), ("G3", 10.0)):
+        end = np.zeros(3)
+        end[b] = end_b
+        coords = " ".join(f"{'XYZ'[i]}{end[i]:g}" for i in range(3))
+        for centre in (f"{centre_words[0]}-10 {centre_words[1]}0", "R10"):
+            text = (f"G0 X{start[0]:g} Y{start[1]:g} Z{start[2]:g} A0 C0\n{plane} G1 F600\n"
+                    f"{code} {coords} {centre}\n")
+            program = read(tmp_path, machine, text)
+            pts = program.points[:, :3]
+            _arc_checks(pts, np.zeros(3), 10.0)
+            # a quarter turn, the short way, in the G2/G3 sense of the plane
+            angle = np.unwrap(np.arctan2(pts[:, b], pts[:, a]))
+            expected = -np.pi / 2 if code == "G2" else np.pi / 2
+            np.testing.assert_allclose(angle[-1] - angle[0], expected, atol=1e-12)
+            assert np.all(np.diff(angle) * expected > 0)
+            np.testing.assert_allclose(pts[:, n], 0.0, atol=0)
+
+
+def test_g18_g3_direction_viewed_from_plus_y(machine, tmp_path):
+    # G3 is counter-clockwise seen from +Y: from X+ it turns through X- (via Z-) before Z+.
+    program = read(tmp_path, machine, "G0 X10 Y0 Z0 A0 C0\nG18 G3 X0 Z10 I-10 K0 F600\n")
+    pts = program.q[:, [0, 2]]
+    _arc_checks(program.points[:, [0, 2]], np.zeros(2), 10.0)
+    lowest_z, lowest_x = np.argmin(pts[:, 1]), np.argmin(pts[:, 0])
+    np.testing.assert_allclose(pts[lowest_z], [0, -10], atol=0.2)  # within a chord
+    np.testing.assert_allclose(pts[lowest_x], [-10, 0], atol=0.2)
+    assert lowest_z < lowest_x
+
+
+def test_negative_r_is_the_long_arc(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X10 Y0 Z0 A0 C0\nG2 X0 Y-10 R-10 F600\n")
+    _arc_checks(program.points[:, :3], np.array([10.0, -10.0, 0.0]), 10.0)
+    angle = np.unwrap(np.arctan2(program.points[:, 1] + 10, program.points[:, 0] - 10))
+    np.testing.assert_allclose(angle[-1] - angle[0], -1.5 * np.pi, atol=1e-12)
+
+
+def test_full_circle_helix_with_rotary_axes_and_turns(machine, tmp_path):
+    text = ("G0 X5 Y0 Z0 A0 C0\nG17 G3 X5 Y0 Z-6 A3 C90 I-5 J0 F60\n"
+            "G2 X5 Y0 Z-12 I-5 P2 F60\n")
+    program = read(tmp_path, machine, text)
+    one, two = program.line == 2, program.line == 3
+    pts = program.points
+    _arc_checks(pts[:, [0, 1]], np.zeros(2), 5.0)
+    turn = np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))
+    first = np.r_[True, one]
+    np.testing.assert_allclose(turn[first][-1] - turn[0], 2 * np.pi, atol=1e-12)
+    np.testing.assert_allclose(turn[-1] - turn[first][-1], -4 * np.pi, atol=1e-12)
+    # the normal axis and the rotary axes move in proportion to the angle
+    frac = (turn[first] - turn[0]) / (2 * np.pi)
+    np.testing.assert_allclose(pts[first, 2], -6 * frac, atol=1e-12)
+    np.testing.assert_allclose(pts[first, 3], deg(3) * frac, atol=1e-12)
+    np.testing.assert_allclose(pts[first, 4], deg(90) * frac, atol=1e-12)
+    # G94 time: helix length / F
+    np.testing.assert_allclose(program.duration[one].sum(),
+                               math.hypot(2 * np.pi * 5, 6) / 60 * 60, rtol=1e-12)
+    np.testing.assert_allclose(program.duration[two].sum(),
+                               math.hypot(4 * np.pi * 5, 6) / 60 * 60, rtol=1e-12)
+
+
+def test_arc_radius_mismatch_within_and_beyond_tolerance(machine, tmp_path):
+    ok = read(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG2 X10.004 Y0 I5 J0 F60\n")
+    assert ok.q[-1, 0] == 10.004
+    with pytest.raises(ProgramError, match=r"prog.ngc, line 2, word 'G2': arc start and end "
+                                           r"radii differ by 0.1 mm \(start 5, end 5.1; "
+                                           r"tolerance 0.005 mm"):
+        read(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG2 X10.1 Y0 I5 J0 F60\n")
+    assert ARC_RADIUS_TOLERANCE == 0.005
+
+
+# --------------------------------------------------------------------------- TCP
+
+
+def _tcp_program(prefix, suffix):
+    tips = np.array([[10.0, -5.0, 2.0], [12.0, -4.0, 1.5], [15.0, 0.0, 1.0], [14.0, 3.0, 0.5]])
+    rot = np.array([[-30.0, 20.0], [-32.0, 60.0], [-35.0, 400.0], [-20.0, 380.0]])
+    lines = [prefix, "G93"]
+    lines.append(f"G0 X{tips[0, 0]} Y{tips[0, 1]} Z{tips[0, 2]} A{rot[0, 0]} C{rot[0, 1]}")
+    for k in range(1, 4):
+        lines.append(f"G1 X{tips[k, 0]} Y{tips[k, 1]} Z{tips[k, 2]} A{rot[k, 0]} "
+                     f"C{rot[k, 1]} F{10 * k}")
+    lines.append(suffix)
+    lines.append("G0 X0 Y0 Z100")
+    return "\n".join(lines) + "\n", tips, np.radians(rot)
+
+
+@pytest.mark.parametrize("prefix, suffix, option", [
+    ("G43.4 H1", "G49", False), ("TRAORI", "TRAFOOF", False), ("M428", "M429", True)])
+def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, option):
+    text, tips, rot = _tcp_program(prefix, suffix)
+    program = read(tmp_path, machine, text, tcp=option)
+    P, O = machine.kinematics.forward(program.points[:4])
+    np.testing.assert_allclose(P, tips, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(program.points[:4, 3:], rot, rtol=0, atol=1e-15)  # as programmed
+    np.testing.assert_allclose(program.duration[:3], [6.0, 3.0, 2.0])
+    assert program.tcp and program.tcp_move[:3].all()
+    assert all("H1" not in text for _, text in program.passthrough)  # no lone H word
+    if option:  # the whole program is TCP: the last rapid is a tip position too
+        np.testing.assert_allclose(machine.kinematics.forward(program.q[-1])[0], [0, 0, 100],
+                                   atol=1e-10)
+    else:       # after G49/TRAFOOF the words are machine axes again
+        np.testing.assert_allclose(program.q[-1], [0, 0, 100, rot[-1, 0], rot[-1, 1]])
+        assert not program.tcp_move[-1]
+
+
+def test_generic_linear_axes_agree_with_direct_kinematics(machine):
+    rng = np.random.default_rng(5)
+    P = rng.uniform(-100, 100, (50, 3))
+    rotary = rng.uniform(-3, 3, (50, 2))
+    xyz = linear_axes(machine.kinematics, P, rotary)
+    tip, _ = machine.kinematics.forward(np.concatenate([xyz, rotary], axis=1))
+    np.testing.assert_allclose(tip, P, rtol=0, atol=1e-10)
+
+    class ForwardOnly:
+        forward = staticmethod(machine.kinematics.forward)
+    np.testing.assert_allclose(linear_axes(ForwardOnly(), P, rotary), xyz, rtol=0, atol=1e-10)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+@pytest.mark.parametrize("text, match", [
+    ("", r"prog.ngc: no motion"),
+    ("%\n(ONLY SETUP)\nG90 G21\nM3 S1000\nM30\n%\n", r"no motion"),
+    ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X1 F10\nX2\n",
+     r"line 3, word 'F': inverse-time feed \(G93\) needs F on every G1/G2/G3 block"),
+    ("G0 X0 Y0 Z0 A0 C0\nG1 X1\n", r"line 2, word 'G1': feed move without a feed rate"),
+    ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X1 F10\nG94 G1 X2\n", r"line 3, word 'G1': feed move without"),
+    ("G0 X0\nG95\n", r"line 2, word 'G95': feed per revolution \(G95\) is not supported"),
+    ("G0 X0\nG28 G91 Z0\n", r"line 2, word 'G28': G28 \(return through a reference point\)"),
+    ("G0 X0\nG53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\)"),
+    ("G0 X0\nG10 L2 P1 X0\n", r"line 2, word 'G10': G10 \(writing offset and tool tables\)"),
+    ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycles \(G81\)"),
+    ("G0 X0\nG41 D1\n", r"line 2, word 'G41': cutter radius compensation"),
+    ("G0 X0\nG5.1 X1\n", r"line 2, word 'G5.1': unsupported G code G5.1"),
+    ("G0 X0\nG1 B45. F100\n", r"line 2, word 'B45.': unsupported word 'B45.' \(axes are "
+                              r"X Y Z A C\)"),
+    ("G0 X0\nG1 X1.2.3 F100\n", r"line 2, word 'X1.2.3': cannot parse number 'X1.2.3'"),
+    ("G0 X0\nG1 X Y1 F100\n", r"line 2, word 'X': cannot parse number 'X'"),
+    ("G0 X0\r\nG1 Y- F100\r\n", r"line 2, word 'Y-': cannot parse number 'Y-'"),
+    ("G0 X0\n5 Y1\n", r"line 2: cannot parse '5'"),
+    ("G0 X0\nG1 X#1 F100\n", r"line 2, word '#1': macros and variables"),
+    ("G0 X0\n#1=5\n", r"line 2, word '#1=5': macros and variables \(#, \[ \], =\)"),
+    ("G0 X[1+2]\n", r"line 1, word '\[1\+2\]': macros and variables"),
+    ("G0 X0\nO100 SUB\n", r"line 2, word 'O100SUB': subroutines and control flow \(O-word "
+                          r"sub\)"),
+    ("G0 X0\nO100 CALL\n", r"line 2, word 'O100CALL': subroutines .*\(O-word call\)"),
+    ("G0 X0\nM98 P100\n", r"line 2, word 'M98': subprogram calls \(M98\)"),
+    ("G0 X0\nG65 P9000\n", r"line 2, word 'G65': macro calls \(G65\)"),
+    ("X0 Y0 Z10\n", r"line 1, word 'X0': axis words before any motion code"),
+    ("G0 G1 X0\n", r"line 1, word 'G1': two codes of one modal group \(G0, G1\) in one block"),
+    ("G0 X0\nG91 G90 X1\n", r"line 2, word 'G90': two codes of one modal group \(G91, G90\)"),
+    ("G0 X0\nG20 G21 X1\n", r"line 2, word 'G21': two codes of one modal group \(G20, G21\)"),
+    ("G0 X0 X1\n", r"line 1, word 'X1': word X appears twice in the block"),
+    ("G0 X0\nG1 X1 F100 F200\n", r"line 2, word 'F200': word F appears twice in the block"),
+    ("G0 X0\nG1 X1 F100\nG1 Q5 X2\n", r"line 3, word 'Q5': unsupported word 'Q5' \(Q is read "
+                                      r"with G64\)"),
+    ("G0 X0\nG1 X1 F100 \u00e9\n", r"line 2: cannot parse '\u00c9'"),
+    ("G0 X0\nG4 G1 X1 P1\n", r"line 2, word 'G4': dwell \(G4\) and a motion code"),
+    ("G0 X0\nG4\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
+    ("G0 X0\nG4 P1 Y2\n", r"line 2, word 'Y2': axis word 'Y2' in a dwell"),
+    ("G0 X0\nG1 X1 (OPEN (NESTED) COMMENT)\n", r"line 2: unbalanced or nested"),
+    ("G0 X0\nG1 X1 P2 F10\n", r"line 2, word 'P2': unsupported word 'P2'"),
+    ("G0 X0\nG1 X1 I2 F10\n", r"line 2, word 'I2': word 'I2' is read only with G2/G3"),
+    ("G0 X0\nG1 X1 F0\n", r"line 2, word 'F0': feed must be positive, got F0"),
+    ("G0 X0\nM3.5\n", r"line 2, word 'M3.5': unsupported M code M3.5"),
+    ("G0 X0 Y0 Z0 A0 C0\nG91 G1 X1 F10\nG90 G91 X1\n", r"line 3, word 'G91': two codes"),
+    ("G91 G0 X1\n", r"line 1, word 'X1': incremental \(G91\) move of axis X before its "
+                    r"position is known"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X10 Y0 F10\n", r"line 2, word 'G2': arc without centre: G2 in "
+                                           r"this plane needs I/J or R"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X0 Y0 R5 F10\n", r"line 2, word 'R5': an R arc cannot be a full "
+                                             r"circle"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X20 Y0 R5 F10\n", r"line 2, word 'R5': arc radius 5 mm is "
+                                              r"shorter than half the chord \(10 mm\)"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X10 Y0 I5 R5 F10\n", r"line 2, word 'R5': an arc is given by R or "
+                                                 r"by I J K, not both"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X10 Y0 I5 K1 F10\n", r"line 2, word 'K1': word 'K1' is not in "
+                                                 r"the arc's plane"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X0 Y0 I0 J0 F10\n", r"line 2, word 'G2': arc radius is zero"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X10 Y0 I5 P1.5 F10\n", r"line 2, word 'P1.5': arc turns"),
+    ("G0 X0 Y0 Z0 A0\nG2 X1 Y1 C0 I1 J0 F10\n", r"line 2, word 'G2': the first block that "
+                                                 r"sets all axes is an arc"),
+    ("G0 X0 Y0 Z0 A0 C0\nG1 X1e3 F10\n", r"line 2, word 'E3': unsupported word 'E3'"),
+    ("G0 X0 Y0 Z0 A0 C0\nG1 X1000000000000 F10\n", r"line 2, word 'X1000000000000': "
+                                                   r"coordinate .* is out of range"),
+])
+def test_program_errors_name_file_line_and_word(machine, tmp_path, text, match):
+    path = write(tmp_path, text)
+    with pytest.raises(ProgramError, match=match) as info:
+        read_program(path, machine)
+    assert str(info.value).startswith(str(path))
+    assert "\n" not in str(info.value)
+
+
+def test_real_program_idioms(machine, tmp_path):
+    """Lines as the public LinuxCNC trunnion examples write them (re-typed, not copied)."""
+    text = ("%\nM428 ;TCP:xyzac\n(PART)\nG00 G17 G40 G90 G94\nZ5\nT1 M6\n"
+            "G54 X-49.65 Y-23.015 A0. C0. S630 M03\nG00 Z5.0 M08\nG01 Z-6.625 F300.0\n"
+            "X-49.375 F600.0\nG93\nG01 X-34.988 Y-2.0 Z-1.404 F67.8035\nG94\nG00 Z10 M09\n"
+            "M429 ;Restore\nM30\n%\n")
+    program = read(tmp_path, machine, text, tcp=True)
+    assert program.start_line == 7
+    kept = dict(program.passthrough)
+    assert kept[4] == "G17 G40" and kept[6] == "T1 M6"
+    assert kept[7] == "G54 S630 M03" and kept[8] == "M08" and kept[14] == "M09"
+    np.testing.assert_allclose(program.duration[1:4],
+                               [11.625 / 300 * 60, 0.275 / 600 * 60, 60 / 67.8035], rtol=1e-12)
+
+
+def test_needs_a_machine_with_kinematics(tmp_path):
+    path = write(tmp_path, "G0 X0 Y0 Z0 A0 C0\nG1 X1 F100\n")
+    with pytest.raises(InputError, match=r"field 'machine': reading G-code needs a machine"):
+        read_gcode(path, None)
+    assert read_gcode(path, "zhang2013").n_points == 2
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(st.text(alphabet=st.sampled_from(list("GMXYZACFIJKRPNOST0123456789.-+ ()%;/#[]=\n"
+                                             "\u00e9\t")), max_size=200))
+def test_arbitrary_text_raises_only_precontour_errors(machine, tmp_path, text):
+    path = tmp_path / "fuzz.ngc"
+    path.write_text(text)
+    try:
+        read_program(path, machine)
+        read_program(path, machine, tcp=True)
+    except PrecontourError:
+        pass
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(st.binary(max_size=300))
+def test_arbitrary_bytes_raise_only_precontour_errors(machine, tmp_path, data):
+    path = tmp_path / "fuzz.nc"
+    path.write_bytes(data)
+    try:
+        read_program(path, machine)
+    except PrecontourError:
+        pass
+
+
+@pytest.mark.parametrize("modes", ["G90 G21 G94", "G91 G20 G94", "G90 G93", "G91 G21 G93"])
+def test_plain_blocks_read_like_the_general_path(machine, tmp_path, modes):
+    """Plain motion blocks are executed together, vectorized; the same blocks with their
+    words in another order (which takes the word-by-word path) give the same program."""
+    rng = np.random.default_rng(len(modes))
+    inverse = "G93" in modes
+    lines = ["G0 X1 Y2 Z3 A4 C5", modes]
+    for k in range(300):
+        names = [a for a in "XYZAC" if rng.random() < 0.6] or ["Z"]
+        words = [f"{a}{rng.uniform(-3, 3):+.4f}" for a in names]
+        if inverse or rng.random() < 0.2:
+            words.append(f"F{rng.uniform(10, 900):.2f}")
+        code = ["", "G1", "G01", "G0", "G00"][rng.integers(5)] if k else "G1"
+        if k == 0 and not inverse:
+            words.append("F500")
+        lines.append(f"N{k} {code} " + " ".join(words))
+    fast = read(tmp_path, machine, "\n".join(lines))
+    shuffled = [lines[0], lines[1]] + [" ".join(reversed(line.split())) for line in lines[2:]]
+    slow = read(tmp_path, machine, "\n".join(shuffled))
+    assert fast.n_moves == slow.n_moves > 250
+    for name in ("rapid", "line", "tcp_move"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-12)  # G91 sums in another order
+    np.testing.assert_allclose(fast.duration, slow.duration, rtol=1e-13)
+    np.testing.assert_allclose(fast.feed, slow.feed, rtol=1e-13)
