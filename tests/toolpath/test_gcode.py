@@ -42,7 +42,7 @@ def read(tmp_path, machine, text, **kwargs):
 
 
 def test_fixture_program(machine):
-    program = read_program(DATA / "blade_finish.nc", machine)
+    program = read_program(DATA / "program_words.nc", machine)
     assert program.start_line == 7
     np.testing.assert_array_equal(program.start, [0, 0, 150, 0, 0])
     expected_q = [[0, 0, 120, 0, 0], [0, 0, 100, 0, 0],
@@ -74,15 +74,15 @@ def test_fixture_program(machine):
 
 
 def test_toolpath_view_matches_forward_kinematics(machine):
-    report = read_gcode_report(DATA / "blade_finish.nc", machine)
-    program = read_program(DATA / "blade_finish.nc", machine)
+    report = read_gcode_report(DATA / "program_words.nc", machine)
+    program = read_program(DATA / "program_words.nc", machine)
     keep = np.r_[True, np.any(np.diff(program.points, axis=0) != 0, axis=1)]
     np.testing.assert_allclose(report.axes, program.points[keep], rtol=0, atol=0)
     P, O = machine.kinematics.forward(program.points[keep])
     np.testing.assert_allclose(report.toolpath.P, P, rtol=0, atol=1e-12)
     np.testing.assert_allclose(report.toolpath.O, O, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(report.toolpath.feed[:3], [np.nan, np.nan, 10.0])
-    assert read_toolpath(DATA / "blade_finish.nc", machine=machine).n_points == keep.sum()
+    assert read_toolpath(DATA / "program_words.nc", machine=machine).n_points == keep.sum()
 
 
 def test_rotate_first_then_position_is_the_start(machine, tmp_path):
