@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from scipy.interpolate import PPoly, make_interp_spline
+from scipy.interpolate import make_interp_spline
 
 from .control_laws import (LAWS, N_DISCRETE_STATES, LawParameters, continuous_derivative,
                            continuous_output, discrete_step, law_reset)
@@ -515,32 +515,51 @@ def _discrete_period_events(x, w, tau, positive, J, B, rg, fr, substeps, h):
 
 
 @_jit
-def _spline_at(breaks, coefs, tau, i):
-    """Value, first and second derivative of a quintic PPoly at tau; i is the interval
-    searched from (stage times increase), returned for the next call."""
-    last = breaks.shape[0] - 2
-    while i < last and tau >= breaks[i + 1]:
-        i += 1
-    d = tau - breaks[i]
-    c0, c1, c2, c3, c4, c5 = (coefs[0, i], coefs[1, i], coefs[2, i], coefs[3, i], coefs[4, i],
-                              coefs[5, i])
-    value = ((((c0 * d + c1) * d + c2) * d + c3) * d + c4) * d + c5
-    slope = (((5 * c0 * d + 4 * c1) * d + 3 * c2) * d + 2 * c3) * d + c4
-    curve = ((20 * c0 * d + 12 * c1) * d + 6 * c2) * d + 2 * c3
-    return value, slope, curve, i
+def _taylor_coefficients(knots, coefs, x, l, work, taylor):
+    """taylor[j] = X^(j)(x) / j!, j = 0 .. 5, of the quintic B-spline interpolant at x.
+
+    ``coefs[j]`` holds the B-spline coefficients of the j-th derivative spline, whose knots are
+    ``knots[j:-j]`` (degree 5 - j): with that offset, de Boor's algorithm for each derivative
+    runs on the original knot interval l (t[l] <= x < t[l+1]; searched from l, returned).
+    """
+    last = knots.shape[0] - 7
+    while l < last and x >= knots[l + 1]:
+        l += 1
+    factorial = 1.0
+    for j in range(6):
+        degree = 5 - j
+        for i in range(degree + 1):
+            work[i] = coefs[j, i + l - 5]
+        for r in range(1, degree + 1):
+            for i in range(degree, r - 1, -1):
+                left = knots[i + l - degree]
+                alpha = (x - left) / (knots[i + 1 + l - r] - left)
+                work[i] = (1.0 - alpha) * work[i - 1] + alpha * work[i]
+        if j > 1:
+            factorial *= j
+        taylor[j] = work[degree] / factorial
+    return l
 
 
 @_jit
-def _continuous_rhs(kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x, w, s0, s1,
-                    s2, X, Xd, Xdd):
+def _command_at(taylor, d):
+    """X, X', X'' at d past the Taylor point (see :func:`_taylor_coefficients`)."""
+    c0, c1, c2, c3, c4, c5 = taylor[0], taylor[1], taylor[2], taylor[3], taylor[4], taylor[5]
+    value = ((((c5 * d + c4) * d + c3) * d + c2) * d + c1) * d + c0
+    slope = (((5 * c5 * d + 4 * c4) * d + 3 * c3) * d + 2 * c2) * d + c1
+    curve = ((20 * c5 * d + 12 * c4) * d + 6 * c3) * d + 2 * c2
+    return value, slope, curve
+
+
+@_jit
+def _continuous_rhs(kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                    X, Xd, Xdd, tff):
     """Derivatives (x', w', s0', s1', s2'), the output u and the applied torque tau."""
     v = rg * w
     e = X - x
     edot = Xd - v
     u = continuous_output(kind, p, s0, s1, s2, e, edot, v, Xdd)
-    tau = kakt * u
-    if ff:
-        tau = tau + _feedforward_torque(fr, Xd / rg)
+    tau = kakt * u + tff
     torque = tau - B * w
     if friction:
         torque = torque - _branch(fr, positive, w)
@@ -550,15 +569,17 @@ def _continuous_rhs(kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, 
 
 
 @_jit
-def _continuous_axis(t, q0, breaks, coefs, kind, p, J, B, rg, kakt, fr, friction, ff,
-                     substeps, q_act, w_out, u_out):
+def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction, ff, substeps,
+                     q_act, w_out, u_out):
     """One axis: continuous control law, command from a quintic interpolant, RK4 sub-steps.
 
-    Stage times are t_k + j h / 2 (j = 0 .. 2 m, h = Ts / m), t_k itself at j = 0. Friction
-    follows one smooth branch within a sub-step. When the speed reaches zero, the crossing is
-    located linearly within the sub-step; the axis then sticks (w = 0) while the applied
-    torque stays within [Tf(0-), Tf(0+)], checked at every sub-step start, or continues on
-    the other branch. The axis starts at rest (stuck, when it has friction).
+    Stage times are t_k + j h / 2 (j = 0 .. 2 m, h = Ts / m); the command and its first two
+    derivatives there come from the interpolant's Taylor polynomial at t_k (exact: the
+    interpolant is one quintic on [t_k, t_k+1)). Friction follows one smooth branch within a
+    sub-step. When the speed reaches zero, the crossing is located linearly within the
+    sub-step; the axis then sticks (w = 0) while the applied torque stays within
+    [Tf(0-), Tf(0+)], checked at every sub-step start, or continues on the other branch. The
+    axis starts at rest (stuck, when it has friction).
     """
     n = t.shape[0]
     m = substeps
@@ -569,39 +590,46 @@ def _continuous_axis(t, q0, breaks, coefs, kind, p, J, B, rg, kakt, fr, friction
     stuck = friction
     positive = True
     ts_pos, ts_neg = fr[0], fr[4]
-    seg = 0
+    work = np.empty(6)
+    taylor = np.empty(6)
+    l = 5
     for k in range(n):
         q_act[k] = x
         w_out[k] = w
-        X1, Xd1, Xdd1, seg = _spline_at(breaks, coefs, t[k], seg)
+        l = _taylor_coefficients(knots, coefs, t[k], l, work, taylor)
+        X1, Xd1, Xdd1 = taylor[0], taylor[1], 2.0 * taylor[2]
+        tff1 = _feedforward_torque(fr, Xd1 / rg) if ff else 0.0
         for j in range(m if k < n - 1 else 1):
             dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
-                kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x, w, s0, s1, s2,
-                X1, Xd1, Xdd1)
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                X1, Xd1, Xdd1, tff1)
             if stuck and (tau1 > ts_pos or tau1 < ts_neg):
                 stuck = False
                 positive = tau1 > 0.0
                 dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
-                    kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x, w, s0, s1,
-                    s2, X1, Xd1, Xdd1)
+                    kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                    X1, Xd1, Xdd1, tff1)
             if j == 0:
                 u_out[k] = u1
             if k == n - 1:
                 break
             i = 2 * m * k + 2 * j
-            X2, Xd2, Xdd2, seg = _spline_at(breaks, coefs, t[0] + h2 * (i + 1), seg)
-            X3, Xd3, Xdd3, seg = _spline_at(breaks, coefs, t[0] + h2 * (i + 2), seg)
-            if j == m - 1:
-                X3, Xd3, Xdd3, seg = _spline_at(breaks, coefs, t[k + 1], seg)
+            X2, Xd2, Xdd2 = _command_at(taylor, t[0] + h2 * (i + 1) - t[k])
+            X3, Xd3, Xdd3 = _command_at(taylor, (t[k + 1] if j == m - 1
+                                                 else t[0] + h2 * (i + 2)) - t[k])
+            tff2 = _feedforward_torque(fr, Xd2 / rg) if ff else 0.0
+            tff3 = _feedforward_torque(fr, Xd3 / rg) if ff else 0.0
             dx2, dw2, ds2a, ds2b, ds2c, _, _ = _continuous_rhs(
-                kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x + h2 * dx1,
-                w + h2 * dw1, s0 + h2 * ds1a, s1 + h2 * ds1b, s2 + h2 * ds1c, X2, Xd2, Xdd2)
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h2 * dx1,
+                w + h2 * dw1, s0 + h2 * ds1a, s1 + h2 * ds1b, s2 + h2 * ds1c, X2, Xd2, Xdd2,
+                tff2)
             dx3, dw3, ds3a, ds3b, ds3c, _, _ = _continuous_rhs(
-                kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x + h2 * dx2,
-                w + h2 * dw2, s0 + h2 * ds2a, s1 + h2 * ds2b, s2 + h2 * ds2c, X2, Xd2, Xdd2)
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h2 * dx2,
+                w + h2 * dw2, s0 + h2 * ds2a, s1 + h2 * ds2b, s2 + h2 * ds2c, X2, Xd2, Xdd2,
+                tff2)
             dx4, dw4, ds4a, ds4b, ds4c, _, tau4 = _continuous_rhs(
-                kind, p, J, B, rg, kakt, fr, friction, ff, positive, stuck, x + h * dx3,
-                w + h * dw3, s0 + h * ds3a, s1 + h * ds3b, s2 + h * ds3c, X3, Xd3, Xdd3)
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h * dx3,
+                w + h * dw3, s0 + h * ds3a, s1 + h * ds3b, s2 + h * ds3c, X3, Xd3, Xdd3, tff3)
             x1 = x + h6 * (dx1 + 2 * (dx2 + dx3) + dx4)
             w1 = w + h6 * (dw1 + 2 * (dw2 + dw3) + dw4)
             s0 = s0 + h6 * (ds1a + 2 * (ds2a + ds3a) + ds4a)
@@ -622,7 +650,7 @@ def _continuous_axis(t, q0, breaks, coefs, kind, p, J, B, rg, kakt, fr, friction
                     w1 = (tau4 - fr[0 if positive else 4]) / J * rest
                     x1 = x_zero + rg * 0.5 * rest * w1
             x, w = x1, w1
-            X1, Xd1, Xdd1 = X3, Xd3, Xdd3
+            X1, Xd1, Xdd1, tff1 = X3, Xd3, Xdd3, tff3
 
 
 def _run_discrete(q, ts, plant: _Plant, law: LawParameters, friction: StackedFriction,
@@ -645,10 +673,17 @@ def _run_continuous(t, q, plant: _Plant, law: LawParameters, friction: StackedFr
     n = q.shape[0]
     q_act, w_out, u_out = (np.empty((n, _N_AXES)) for _ in range(3))
 
+    # Quintic interpolant of the samples (one factorization for the five axes) and its
+    # derivative splines, evaluated inside the loop: nothing per stage time is stored.
+    spline = make_interp_spline(t, q, k=5)
+    derivatives = [spline] + [spline.derivative(j) for j in range(1, 6)]
+    n_coefs = spline.c.shape[0]
+
     def run_axis(i):
-        # Quintic interpolant of the samples, one axis at a time to bound memory.
-        spline = PPoly.from_spline(make_interp_spline(t, q[:, i], k=5))
-        _continuous_axis(t, q[0, i], spline.x, spline.c, law.kind, law.params[i], plant.J[i],
+        coefs = np.zeros((6, n_coefs))
+        for j, d in enumerate(derivatives):
+            coefs[j, :n_coefs - j] = d.c[:n_coefs - j, i]
+        _continuous_axis(t, q[0, i], spline.t, coefs, law.kind, law.params[i], plant.J[i],
                          plant.B[i], plant.rg[i], plant.kakt[i], friction.branches[i],
                          use_friction, use_ff, substeps, q_act[:, i], w_out[:, i],
                          u_out[:, i])
