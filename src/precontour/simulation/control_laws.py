@@ -7,6 +7,8 @@ per servo period, output held by a zero-order hold), :func:`continuous_output` a
 :func:`continuous_derivative` dispatch on that code; the integrators of
 :mod:`precontour.simulation.virtual_machine` call them inside their compiled loops. Laws use the
 drives' nominal J, B (the controller's model of the machine), whatever plant is integrated.
+numba caches a compiled function by its own file only: the integrators' cached code embeds these
+laws, so after editing this module delete ``__pycache__/*.nbi`` and ``*.nbc`` in this folder.
 
 Plant, in position units (spec section 2): J x'' + B x' = K u - rg Tf, K = ka kt rg.
 
