@@ -35,7 +35,7 @@ S = (s + lambda) e gives
 
 i.e. J s^3 + (J lambda + Ks) s^2 + (Ks lambda + rho) s + rho lambda. On a plant J', B' with
 nominal estimates J, B the error obeys
-((J' s^3 + (B' - B + J lambda + Ks) s^2 + (Ks lambda + rho) s + rho lambda) e
+(J' s^3 + (B' - B + J lambda + Ks) s^2 + (Ks lambda + rho) s + rho lambda) e
 = ((J' - J) s^3 + (B' - B) s^2) X.
 Optional extension (not in the published law, off unless the machine file sets them): J^ and
 B^ adapt at J^' = gamma_J (lambda e' + X'') S and B^' = gamma_B x' S (the regressors of J and
