@@ -77,6 +77,25 @@ def discrete_p_pi_error(drive: Drive, g: PPIGains, ts: float):
     return num, den
 
 
+def discrete_smc_characteristic(drive: Drive, g, ts: float):
+    """Characteristic polynomial in z of the sampled sliding-mode loop, frozen estimates.
+
+    The law K u = J lam e' + B x' + rho Ts z/(z-1) S + ks S (feed-forward left out: it does not
+    move the poles), S = lam e + e', with e' = (z-1)/(Ts z) e and x' = (z-1)/(Ts z) x, closed
+    around the ZOH plant x = P u with e = -x: multiplied out by K Ts z (z-1).
+    """
+    Np, Dp = zoh_plant(drive, ts)
+    zm1 = np.array([1.0, -1.0])
+    # Ts z (z-1) [J lam e' + (ks + rho Ts z/(z-1)) S] / e and Ts z (z-1) B x' / x:
+    law_e = np.polyadd(drive.J * g.lam * np.polymul(zm1, zm1),
+                       np.polymul(np.polyadd(g.ks * zm1, [g.gamma_d * ts, 0.0]),
+                                  [g.lam * ts + 1.0, -1.0]))
+    law_x = drive.B * np.polymul(zm1, zm1)
+    # K Ts z (z-1) u = (law_x - law_e) x, K = ka kt rg; x = (Np/Dp) u (P takes volts).
+    return np.polyadd(np.polymul(Dp, drive.gain * ts * np.array([1.0, -1.0, 0.0])),
+                      np.polymul(Np, np.polysub(law_e, law_x)))
+
+
 def discrete_closed_loop_error(drive, gains, ts):
     """e(z)/X(z) of the ZOH plant (cont2discrete) closed by the rectangle/backward-difference
     PID C(z) = kp + ki Ts z/(z-1) + kd (z-1)/(Ts z), as polynomials in z."""

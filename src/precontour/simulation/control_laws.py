@@ -1,31 +1,48 @@
-"""Control laws of the virtual machine, vectorized over the five axes, by controller type.
+"""Control laws of the virtual machine, one axis at a time, compiled, by controller type.
 
-Each controller type of :mod:`precontour.machine.controllers` registers a discrete-time law (run once
-per servo period, output held by a zero-order hold) in :data:`DISCRETE_LAWS` and, when it has
-one, a continuous-time law in :data:`CONTINUOUS_LAWS`; :func:`precontour.simulation.virtual_machine.simulate`
-picks them by ``controller.type``. Laws use the drives' nominal J, B (the controller's model of
-the machine), whatever plant the simulation integrates.
+Each controller type of :mod:`precontour.machine.controllers` registers in :data:`LAWS` a
+function that packs its gains into :class:`LawParameters` (a law code and one row of numbers
+per axis). The compiled per-sample functions :func:`law_reset`, :func:`discrete_step` (run once
+per servo period, output held by a zero-order hold), :func:`continuous_output` and
+:func:`continuous_derivative` dispatch on that code; the integrators of
+:mod:`precontour.simulation.virtual_machine` call them inside their compiled loops. Laws use the
+drives' nominal J, B (the controller's model of the machine), whatever plant is integrated.
+numba caches a compiled function by its own file only: the integrators' cached code embeds these
+laws, so after editing this module delete ``__pycache__/*.nbi`` and ``*.nbc`` in this folder.
 
 Plant, in position units (spec section 2): J x'' + B x' = K u - rg Tf, K = ka kt rg.
 
-Adaptive sliding-mode law (Altintas, Erkorkmaz & Zhu, CIRP Annals 49(1) 2000, written at the
-motor with e = X - x, position quantities divided by rg):
+Sliding-mode law as published (Altintas, Erkorkmaz & Zhu, CIRP Annals 49(1) 2000, the paper's
+reference [5]), written at the motor: with e = X - x, every position quantity is divided by rg,
+and the plant is J w' + B w + d = tau (d: friction and any other disturbance torque).
 
-    (1) S = lambda e + e'                                 sliding variable
-    (2) phi = lambda e' + X''                             reference acceleration of the surface
-    (3) tau = J^ phi + B^ X' + d^ + ks S,  u = tau / (ka kt)
-    (4) J^' = gamma_J phi S,  B^' = gamma_B X' S,  d^' = gamma_d S
+    (1) S = lambda e + e'                         sliding surface
+    (2) tau = J^ (lambda e' + X'') + B^ x' + d^ + Ks S,   u = tau / (ka kt)
+    (3) d^ = rho int S dt                         adaptive disturbance estimate (rho = gamma_d)
 
-With V = J S^2 / 2 + (J - J^)^2 / (2 gamma_J) + (B - B^)^2 / (2 gamma_B)
-+ (d - d^)^2 / (2 gamma_d), the plant J x'' + B x' + d = tau gives
-J S' = (J - J^) phi + (B - B^) X' + (d - d^) - ks S - B e', so the rates (4) cancel the parameter
-terms: V' = -(ks + B) S^2 + B lambda e S. ks S replaces the discontinuous switching term of
-textbook sliding mode (no chattering); J^ and B^ are projected onto
-:data:`SMC_ESTIMATE_RANGE` times their nominal values. With frozen nominal estimates the error
-obeys J e''' + (J lambda + B + ks) e'' + (ks lambda + gamma_d) e' + gamma_d lambda e = 0: the
-linear loop tracks exactly, and the gains set how fast it rejects disturbances.
+Derivation. J S' = J (lambda e' + X'') - J x''. With J x'' = tau - B x' - d and (2),
+J S' = (J - J^)(lambda e' + X'') + (B - B^) x' + (d - d^) - Ks S. With exact estimates
+J^ = J, B^ = B and a constant d, V = J S^2 / 2 + (d - d^)^2 / (2 rho) has
+V' = S (d - d^) - Ks S^2 - (d - d^) S = -Ks S^2 <= 0: S -> 0 and then e -> 0 with time constant
+1 / lambda. Ks S is a continuous feedback term: no switching, so no chattering from the law
+itself. The damping term uses the measured velocity x': with the commanded velocity (B^ X'),
+J S' gains the term -B e' and V' = -(Ks + B) S^2 + B lambda e S is not negative definite.
+The Slotine-Li form B^ (X' + lambda e) = B^ x' + B^ S is the same law with Ks + B^ for Ks.
+Linear closed loop (frozen estimates, no disturbance): J S' + Ks S + rho int S = 0 with
+S = (s + lambda) e gives
 
-Discrete laws differentiate by backward differences of the encoder reading (velocity feedback
+    (s + lambda)(J s^2 + Ks s + rho) e = 0,
+
+i.e. J s^3 + (J lambda + Ks) s^2 + (Ks lambda + rho) s + rho lambda. On a plant J', B' with
+nominal estimates J, B the error obeys
+(J' s^3 + (B' - B + J lambda + Ks) s^2 + (Ks lambda + rho) s + rho lambda) e
+= ((J' - J) s^3 + (B' - B) s^2) X.
+Optional extension (not in the published law, off unless the machine file sets them): J^ and
+B^ adapt at J^' = gamma_J (lambda e' + X'') S and B^' = gamma_B x' S (the regressors of J and
+B in J S' above, so V' = -Ks S^2 with the two parameter terms added to V), projected onto
+:data:`SMC_ESTIMATE_RANGE` times their nominal values.
+
+Discrete laws differentiate by backward differences of the encoder reading (velocity feedback,
 and e'), integrate by the rectangle rule including the current sample, and take feed-forward
 from differences of the command samples q_k: velocity into a velocity loop by the same backward
 difference as the feedback (so that e_v = 0 on perfect tracking), velocity and acceleration
@@ -35,45 +52,46 @@ X''_k = (q_k+2 - q_k+1 - q_k + q_k-1) / (2 Ts^2); the command rests before q_0 a
 
 from __future__ import annotations
 
-from typing import Callable, Protocol
+from dataclasses import dataclass
+from typing import Callable
 
+import numba
 import numpy as np
 
 from ..machine.controllers import Controller
-from ..machine.drives import AXES, Drive
+from ..machine.drives import Drive
+
+__all__ = ["LAWS", "LawParameters", "SMC_ESTIMATE_RANGE", "N_DISCRETE_STATES",
+           "N_CONTINUOUS_STATES", "law_reset", "discrete_step", "continuous_output",
+           "continuous_derivative"]
 
 #: Projection range of the sliding-mode estimates J^ and B^, as factors on the nominal J, B.
 SMC_ESTIMATE_RANGE: tuple[float, float] = (0.25, 4.0)
 
-_N_AXES = len(AXES)
+# Law codes, dispatched on inside the compiled loops.
+_PID, _P_PI, _SMC = 0, 1, 2
+_N_PARAMS = 13
+#: Length of a law's state vector in discrete and in continuous time.
+N_DISCRETE_STATES = 5
+N_CONTINUOUS_STATES = 3
+
+_jit = numba.njit(cache=True, nogil=True)
 
 
-class DiscreteLaw(Protocol):
-    """A control law run once per servo period, vectorized over the five axes."""
+@dataclass(frozen=True)
+class LawParameters:
+    """A control law ready for the compiled integrators.
 
-    def reset(self, q_cmd: np.ndarray) -> None:
-        """Zero the internal state; ``q_cmd`` (N, 5) is the whole command, for feed-forward."""
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Controller output u_k (V, shape (5,)) from e_k = q_cmd[k] - y_k and the reading y_k."""
-
-
-class ContinuousLaw(Protocol):
-    """A continuous-time control law with internal state ``s`` of shape (n_states, 5).
-
-    The state starts at zero. ``e`` = X - x, ``edot`` = X' - x', ``v`` = x' (actual axis
-    velocity) and ``a_cmd`` = X'' (command acceleration), each of shape (5,).
+    Attributes
+    ----------
+    kind : int
+        Law code.
+    params : ndarray, shape (5, 13)
+        One row of gains (and nominal plant numbers) per axis X, Y, Z, A, C.
     """
 
-    n_states: int
-
-    def output(self, s: np.ndarray, e: np.ndarray, edot: np.ndarray, v: np.ndarray,
-               a_cmd: np.ndarray) -> np.ndarray:
-        """u (V), shape (5,)."""
-
-    def derivative(self, s: np.ndarray, e: np.ndarray, edot: np.ndarray, v: np.ndarray,
-                   a_cmd: np.ndarray) -> np.ndarray:
-        """ds/dt, shape (n_states, 5)."""
+    kind: int
+    params: np.ndarray
 
 
 class _Nominal:
@@ -92,247 +110,181 @@ def _gains(controller: Controller, *names: str) -> list[np.ndarray]:
             for name in names]
 
 
-def command_differences(q_cmd: np.ndarray, ts: float):
-    """Backward-difference velocity, hold-interval mean velocity and acceleration, (N, 5) each.
+def _pack(kind: int, *columns: np.ndarray) -> LawParameters:
+    params = np.zeros((len(columns[0]), _N_PARAMS))
+    for j, column in enumerate(columns):
+        params[:, j] = column
+    return LawParameters(kind=kind, params=params)
 
-    See the module docstring; the command rests before its first and after its last sample.
+
+def pid_parameters(controller: Controller, drives: tuple[Drive, ...]) -> LawParameters:
+    """PID: u = kp e + ki int e + kd e' + (kvff B X' + kaff J X'') / K.
+
+    Discrete: I_k = I_k-1 + Ts e_k, derivative (e_k - e_k-1) / Ts, feed-forward on the hold
+    interval; the state (I, e_k-1) starts at zero, a drive at rest at its first command.
     """
-    padded = np.concatenate([q_cmd[:1], q_cmd, q_cmd[-1:], q_cmd[-1:]])
-    d = np.diff(padded, axis=0) / ts             # d[j] = (p[j+1] - p[j]) / ts, p[j] = q[j-1]
-    v_back = d[:-2]
-    v_hold = d[1:-1]
-    a_hold = (d[2:] - d[:-2]) / (2 * ts)
-    return v_back, v_hold, a_hold
+    kp, ki, kd, kvff, kaff = _gains(controller, "kp", "ki", "kd", "kvff", "kaff")
+    nom = _Nominal(drives)
+    return _pack(_PID, kp, ki, kd, kvff * nom.B / nom.K, kaff * nom.J / nom.K)
 
 
-# --------------------------------------------------------------------------------------------
-# PID
-# --------------------------------------------------------------------------------------------
+def p_pi_parameters(controller: Controller, drives: tuple[Drive, ...]) -> LawParameters:
+    """Cascaded P-PI: e_v = kp e + kvff X' - x', u = kv e_v + ki_v int e_v + kaff J X'' / K.
 
-class DiscretePID:
-    """Discrete PID: u_k = kp e_k + ki I_k + kd (e_k - e_{k-1}) / Ts + feed-forward,
-    I_k = I_{k-1} + Ts e_k; feed-forward (kvff B X'_k + kaff J X''_k) / K on the hold interval.
-
-    The state (I, e_{k-1}) starts at zero, matching a drive at rest at its first command.
+    Discrete: x'_k = (y_k - y_k-1) / Ts from the encoder (0 at the first sample, the drive
+    starts at rest), X'_k by the same backward difference of the command.
     """
-
-    def __init__(self, controller: Controller, ts: float, drives: tuple[Drive, ...]):
-        self.kp, self.ki, self.kd, kvff, kaff = _gains(controller, "kp", "ki", "kd", "kvff",
-                                                       "kaff")
-        self.ts = ts
-        nom = _Nominal(drives)
-        self._kd_ts = self.kd / ts
-        self._cv = kvff * nom.B / nom.K
-        self._ca = kaff * nom.J / nom.K
-        self._ff = None
-        self.reset(None)
-
-    def reset(self, q_cmd: np.ndarray | None) -> None:
-        self._integral = np.zeros(_N_AXES)
-        self._e_prev = np.zeros(_N_AXES)
-        self._k = 0
-        self._ff = None
-        if q_cmd is not None and (self._cv.any() or self._ca.any()):
-            _, v_hold, a_hold = command_differences(q_cmd, self.ts)
-            self._ff = self._cv * v_hold + self._ca * a_hold
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        self._integral += self.ts * e
-        u = self.kp * e + self.ki * self._integral + self._kd_ts * (e - self._e_prev)
-        self._e_prev = e
-        if self._ff is not None:
-            u = u + self._ff[self._k]
-        self._k += 1
-        return u
+    kp, kv, ki_v, kvff, kaff = _gains(controller, "kp", "kv", "ki_v", "kvff", "kaff")
+    nom = _Nominal(drives)
+    return _pack(_P_PI, kp, kv, ki_v, kvff, kaff * nom.J / nom.K)
 
 
-class ContinuousPID:
-    """Continuous PID u = kp e + ki z + kd e' + (kvff B X' + kaff J X'') / K, z' = e."""
+def smc_parameters(controller: Controller, drives: tuple[Drive, ...]) -> LawParameters:
+    """Sliding mode, Eq. (1)-(3) of the module docstring (with the optional J^, B^ rates).
 
-    n_states = 1
-
-    def __init__(self, controller: Controller, drives: tuple[Drive, ...]):
-        self.kp, self.ki, self.kd, kvff, kaff = _gains(controller, "kp", "ki", "kd", "kvff",
-                                                       "kaff")
-        nom = _Nominal(drives)
-        self._cv = kvff * nom.B / nom.K
-        self._ca = kaff * nom.J / nom.K
-
-    def output(self, s, e, edot, v, a_cmd):
-        return (self.kp * e + self.ki * s[0] + self.kd * edot + self._cv * (edot + v)
-                + self._ca * a_cmd)
-
-    def derivative(self, s, e, edot, v, a_cmd):
-        return e[np.newaxis]
-
-
-# --------------------------------------------------------------------------------------------
-# P-PI
-# --------------------------------------------------------------------------------------------
-
-class DiscretePPI:
-    """Discrete cascaded P-PI with the encoder velocity v_k = (y_k - y_{k-1}) / Ts:
-
-    e_v,k = kp e_k + kvff (q_k - q_{k-1}) / Ts - v_k,  I_k = I_{k-1} + Ts e_v,k,
-    u_k = kv e_v,k + ki_v I_k + kaff J X''_k / K.
+    Discrete: e'_k = (e_k - e_k-1) / Ts and x'_k = (y_k - y_k-1) / Ts (0 at the first
+    sample), X''_k the hold-interval mean of the command differences; d^ (and J^, B^) are
+    updated by the rectangle rule with the current S before u_k is computed (as the PID
+    integral).
     """
-
-    def __init__(self, controller: Controller, ts: float, drives: tuple[Drive, ...]):
-        self.kp, self.kv, self.ki_v, self.kvff, kaff = _gains(controller, "kp", "kv", "ki_v",
-                                                              "kvff", "kaff")
-        self.ts = ts
-        nom = _Nominal(drives)
-        self._ca = kaff * nom.J / nom.K
-        self.reset(None)
-
-    def reset(self, q_cmd: np.ndarray | None) -> None:
-        self._integral = np.zeros(_N_AXES)
-        self._y_prev = None
-        self._k = 0
-        self._vff = self._aff = None
-        if q_cmd is not None:
-            v_back, _, a_hold = command_differences(q_cmd, self.ts)
-            if self.kvff.any():
-                self._vff = self.kvff * v_back
-            if self._ca.any():
-                self._aff = self._ca * a_hold
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        # The drive starts at rest: the first reading has no predecessor.
-        v = np.zeros(_N_AXES) if self._y_prev is None else (y - self._y_prev) / self.ts
-        self._y_prev = y
-        e_v = self.kp * e - v
-        if self._vff is not None:
-            e_v = e_v + self._vff[self._k]
-        self._integral += self.ts * e_v
-        u = self.kv * e_v + self.ki_v * self._integral
-        if self._aff is not None:
-            u = u + self._aff[self._k]
-        self._k += 1
-        return u
+    lam, ks, rho, gamma_J, gamma_B = _gains(controller, "lam", "ks", "gamma_d", "gamma_J",
+                                            "gamma_B")
+    nom = _Nominal(drives)
+    lo, hi = SMC_ESTIMATE_RANGE
+    return _pack(_SMC, lam, ks, rho, gamma_J, gamma_B, nom.J, nom.B, nom.rg, nom.kakt,
+                 lo * nom.J, hi * nom.J, lo * nom.B, hi * nom.B)
 
 
-class ContinuousPPI:
-    """Continuous P-PI: e_v = kp e + kvff X' - x', u = kv e_v + ki_v z + kaff J X'' / K, z' = e_v."""
-
-    n_states = 1
-
-    def __init__(self, controller: Controller, drives: tuple[Drive, ...]):
-        self.kp, self.kv, self.ki_v, self.kvff, kaff = _gains(controller, "kp", "kv", "ki_v",
-                                                              "kvff", "kaff")
-        nom = _Nominal(drives)
-        self._ca = kaff * nom.J / nom.K
-
-    def _e_v(self, e, edot, v):
-        return self.kp * e + self.kvff * (edot + v) - v
-
-    def output(self, s, e, edot, v, a_cmd):
-        return self.kv * self._e_v(e, edot, v) + self.ki_v * s[0] + self._ca * a_cmd
-
-    def derivative(self, s, e, edot, v, a_cmd):
-        return self._e_v(e, edot, v)[np.newaxis]
-
-
-# --------------------------------------------------------------------------------------------
-# Adaptive sliding mode
-# --------------------------------------------------------------------------------------------
-
-class _SMCBase:
-    def __init__(self, controller: Controller, drives: tuple[Drive, ...]):
-        self.lam, self.ks, self.gamma_d, self.gamma_J, self.gamma_B = _gains(
-            controller, "lam", "ks", "gamma_d", "gamma_J", "gamma_B")
-        nom = self.nominal = _Nominal(drives)
-        lo, hi = SMC_ESTIMATE_RANGE
-        self.J_bounds = (lo * nom.J, hi * nom.J)
-        self.B_bounds = (lo * nom.B, hi * nom.B)
-
-    def _torque(self, J_hat, B_hat, d_hat, e, edot, v_cmd, a_cmd):
-        """Eq. (1)-(3) at the motor; returns (u, S_m, phi_m, v_m)."""
-        rg = self.nominal.rg
-        S_m = (self.lam * e + edot) / rg
-        phi_m = (self.lam * edot + a_cmd) / rg
-        v_m = v_cmd / rg
-        tau = J_hat * phi_m + B_hat * v_m + d_hat + self.ks * S_m
-        return tau / self.nominal.kakt, S_m, phi_m, v_m
-
-
-class DiscreteSMC(_SMCBase):
-    """Discrete adaptive sliding mode, Eq. (1)-(4) of the module docstring.
-
-    e'_k = (e_k - e_{k-1}) / Ts; X'_k and X''_k are hold-interval means of the command
-    differences; the estimates are updated by the rectangle rule with the current S before u_k
-    is computed (as the PID integral), then projected.
-    """
-
-    def __init__(self, controller: Controller, ts: float, drives: tuple[Drive, ...]):
-        super().__init__(controller, drives)
-        self.ts = ts
-        self.reset(None)
-
-    def reset(self, q_cmd: np.ndarray | None) -> None:
-        nom = self.nominal
-        self.J_hat, self.B_hat = nom.J.copy(), nom.B.copy()
-        self.d_hat = np.zeros(_N_AXES)
-        self._e_prev = np.zeros(_N_AXES)
-        self._k = 0
-        self._v = self._a = None
-        if q_cmd is not None:
-            _, self._v, self._a = command_differences(q_cmd, self.ts)
-
-    def step(self, e: np.ndarray, y: np.ndarray) -> np.ndarray:
-        ts, k = self.ts, self._k
-        edot = (e - self._e_prev) / ts
-        self._e_prev = e
-        rg = self.nominal.rg
-        S_m = (self.lam * e + edot) / rg
-        phi_m = (self.lam * edot + self._a[k]) / rg
-        v_m = self._v[k] / rg
-        self.d_hat = self.d_hat + ts * self.gamma_d * S_m
-        self.J_hat = np.clip(self.J_hat + ts * self.gamma_J * phi_m * S_m, *self.J_bounds)
-        self.B_hat = np.clip(self.B_hat + ts * self.gamma_B * v_m * S_m, *self.B_bounds)
-        self._k = k + 1
-        tau = self.J_hat * phi_m + self.B_hat * v_m + self.d_hat + self.ks * S_m
-        return tau / self.nominal.kakt
-
-
-class ContinuousSMC(_SMCBase):
-    """Continuous adaptive sliding mode, Eq. (1)-(4); state (J^ - J, B^ - B, d^)."""
-
-    n_states = 3
-
-    def _estimates(self, s):
-        nom = self.nominal
-        return (np.clip(nom.J + s[0], *self.J_bounds), np.clip(nom.B + s[1], *self.B_bounds),
-                s[2])
-
-    def output(self, s, e, edot, v, a_cmd):
-        J_hat, B_hat, d_hat = self._estimates(s)
-        return self._torque(J_hat, B_hat, d_hat, e, edot, edot + v, a_cmd)[0]
-
-    def derivative(self, s, e, edot, v, a_cmd):
-        _, S_m, phi_m, v_m = self._torque(0.0, 0.0, 0.0, e, edot, edot + v, a_cmd)
-        rate_J = self.gamma_J * phi_m * S_m
-        rate_B = self.gamma_B * v_m * S_m
-        # Projection: an estimate at a bound stops moving outwards.
-        nom = self.nominal
-        J, B = nom.J + s[0], nom.B + s[1]
-        rate_J = np.where(((J <= self.J_bounds[0]) & (rate_J < 0))
-                          | ((J >= self.J_bounds[1]) & (rate_J > 0)), 0.0, rate_J)
-        rate_B = np.where(((B <= self.B_bounds[0]) & (rate_B < 0))
-                          | ((B >= self.B_bounds[1]) & (rate_B > 0)), 0.0, rate_B)
-        return np.stack([rate_J, rate_B, self.gamma_d * S_m])
-
-
-#: Discrete control-law factories by controller type: ``factory(controller, ts, drives)``.
-DISCRETE_LAWS: dict[str, Callable[[Controller, float, tuple[Drive, ...]], DiscreteLaw]] = {
-    "pid": DiscretePID,
-    "p-pi": DiscretePPI,
-    "smc": DiscreteSMC,
+#: Law packers by controller type: ``LAWS[type](controller, drives) -> LawParameters``.
+LAWS: dict[str, Callable[[Controller, tuple[Drive, ...]], LawParameters]] = {
+    "pid": pid_parameters,
+    "p-pi": p_pi_parameters,
+    "smc": smc_parameters,
 }
 
-#: Continuous control-law factories by controller type: ``factory(controller, drives)``.
-CONTINUOUS_LAWS: dict[str, Callable[[Controller, tuple[Drive, ...]], ContinuousLaw]] = {
-    "pid": ContinuousPID,
-    "p-pi": ContinuousPPI,
-    "smc": ContinuousSMC,
-}
+
+# --------------------------------------------------------------------------------------------
+# Compiled per-sample functions (one axis)
+# --------------------------------------------------------------------------------------------
+
+@_jit
+def _command(q, j):
+    """q_j, with the command at rest before its first and after its last sample."""
+    if j < 0:
+        return q[0]
+    if j >= q.shape[0]:
+        return q[q.shape[0] - 1]
+    return q[j]
+
+
+@_jit
+def _v_back(q, k, ts):
+    return (_command(q, k) - _command(q, k - 1)) / ts
+
+
+@_jit
+def _v_hold(q, k, ts):
+    return (_command(q, k + 1) - _command(q, k)) / ts
+
+
+@_jit
+def _a_hold(q, k, ts):
+    return (_v_hold(q, k + 1, ts) - _v_back(q, k, ts)) / (2 * ts)
+
+
+@_jit
+def _clip(value, lo, hi):
+    return min(max(value, lo), hi)
+
+
+@_jit
+def law_reset(kind, p, state):
+    """Zero a law's state (a drive at rest at its first command); J^, B^ start nominal."""
+    state[:] = 0.0
+    if kind == _SMC:
+        state[1] = p[5]
+        state[2] = p[6]
+
+
+@_jit
+def discrete_step(kind, p, state, k, e, y, q, ts):
+    """Controller output u_k (V) of one axis from e_k = q_k - y_k and the reading y_k.
+
+    ``q`` is the axis's whole command (for the feed-forward differences), ``state`` the law's
+    state (length :data:`N_DISCRETE_STATES`), updated in place.
+    """
+    if kind == _PID:
+        kp, ki, kd, cv, ca = p[0], p[1], p[2], p[3], p[4]
+        state[0] += ts * e
+        u = kp * e + ki * state[0] + (kd / ts) * (e - state[1])
+        state[1] = e
+        if cv != 0.0 or ca != 0.0:
+            u = u + (cv * _v_hold(q, k, ts) + ca * _a_hold(q, k, ts))
+        return u
+    if kind == _P_PI:
+        kp, kv, ki_v, kvff, ca = p[0], p[1], p[2], p[3], p[4]
+        v = 0.0 if k == 0 else (y - state[1]) / ts
+        state[1] = y
+        e_v = kp * e - v
+        if kvff != 0.0:
+            e_v = e_v + kvff * _v_back(q, k, ts)
+        state[0] += ts * e_v
+        u = kv * e_v + ki_v * state[0]
+        if ca != 0.0:
+            u = u + ca * _a_hold(q, k, ts)
+        return u
+    # sliding mode; state: d^, J^, B^, e_k-1, y_k-1
+    lam, ks, rho, gamma_J, gamma_B = p[0], p[1], p[2], p[3], p[4]
+    rg, kakt = p[7], p[8]
+    edot = (e - state[3]) / ts
+    v = 0.0 if k == 0 else (y - state[4]) / ts
+    state[3] = e
+    state[4] = y
+    s_m = (lam * e + edot) / rg
+    phi_m = (lam * edot + _a_hold(q, k, ts)) / rg
+    v_m = v / rg
+    state[0] += ts * rho * s_m
+    if gamma_J != 0.0:
+        state[1] = _clip(state[1] + ts * gamma_J * phi_m * s_m, p[9], p[10])
+    if gamma_B != 0.0:
+        state[2] = _clip(state[2] + ts * gamma_B * v_m * s_m, p[11], p[12])
+    return (state[1] * phi_m + state[2] * v_m + state[0] + ks * s_m) / kakt
+
+
+@_jit
+def continuous_output(kind, p, s0, s1, s2, e, edot, v, a_cmd):
+    """u (V) of the continuous law; e = X - x, edot = X' - x', v = x', a_cmd = X''.
+
+    The state (s0, s1, s2) starts at zero: PID int e; P-PI int e_v; sliding mode
+    (J^ - J, B^ - B, d^).
+    """
+    if kind == _PID:
+        return (p[0] * e + p[1] * s0 + p[2] * edot + p[3] * (edot + v) + p[4] * a_cmd)
+    if kind == _P_PI:
+        e_v = p[0] * e + p[3] * (edot + v) - v
+        return p[1] * e_v + p[2] * s0 + p[4] * a_cmd
+    lam, ks, rg = p[0], p[1], p[7]
+    J_hat = _clip(p[5] + s0, p[9], p[10])
+    B_hat = _clip(p[6] + s1, p[11], p[12])
+    tau = J_hat * (lam * edot + a_cmd) / rg + B_hat * v / rg + s2 + ks * (lam * e + edot) / rg
+    return tau / p[8]
+
+
+@_jit
+def continuous_derivative(kind, p, s0, s1, s2, e, edot, v, a_cmd):
+    """d(s0, s1, s2)/dt of the continuous law (see :func:`continuous_output`)."""
+    if kind == _PID:
+        return e, 0.0, 0.0
+    if kind == _P_PI:
+        return p[0] * e + p[3] * (edot + v) - v, 0.0, 0.0
+    lam, rho, gamma_J, gamma_B, rg = p[0], p[2], p[3], p[4], p[7]
+    s_m = (lam * e + edot) / rg
+    rate_J = gamma_J * (lam * edot + a_cmd) / rg * s_m
+    rate_B = gamma_B * v / rg * s_m
+    # Projection: an estimate at a bound stops moving outwards.
+    J_hat, B_hat = p[5] + s0, p[6] + s1
+    if (J_hat <= p[9] and rate_J < 0.0) or (J_hat >= p[10] and rate_J > 0.0):
+        rate_J = 0.0
+    if (B_hat <= p[11] and rate_B < 0.0) or (B_hat >= p[12] and rate_B > 0.0):
+        rate_B = 0.0
+    return rate_J, rate_B, rho * s_m

@@ -11,31 +11,35 @@ Timing convention: sample k of every output is taken at the command instant t_k.
 reads the encoder at t_k (``q_act[k]`` = x(t_k)), computes u_k from e_k = q_cmd[k] - x(t_k), and
 holds u_k (and the friction feed-forward torque) over [t_k, t_k+1).
 
-Control laws are small pluggable classes chosen by ``controller.type``
-(:data:`~precontour.simulation.control_laws.DISCRETE_LAWS`,
-:data:`~precontour.simulation.control_laws.CONTINUOUS_LAWS`, defined in :mod:`precontour.simulation.control_laws`
-and re-exported here); an unknown type raises
+Control laws are chosen by ``controller.type`` from
+:data:`~precontour.simulation.control_laws.LAWS`; an unknown type raises
 :class:`~precontour.errors.UnsupportedControllerError`.
+
+The per-sample loops are compiled (numba, cached on disk), one axis per call: the five axes are
+independent, so they run on up to two threads. Cost and memory are linear in the samples.
 """
 
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from .control_laws import CONTINUOUS_LAWS, DISCRETE_LAWS, ContinuousLaw, DiscreteLaw
+from .control_laws import (LAWS, N_DISCRETE_STATES, LawParameters, continuous_derivative,
+                           continuous_output, discrete_step, law_reset)
 from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
-__all__ = ["CONTINUOUS_LAWS", "DISCRETE_LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES",
-           "ContinuousLaw", "DiscreteLaw", "SimulationResult", "StackedFriction", "simulate",
-           "simulate_trajectory"]
+__all__ = ["LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES", "SimulationResult",
+           "StackedFriction", "simulate", "simulate_trajectory"]
 
 MODES: tuple[str, ...] = ("discrete", "continuous")
 
@@ -48,6 +52,8 @@ DEFAULT_SUBSTEPS: dict[str, int] = {"discrete": 4, "continuous": 2}
 FF_SPEED_DEADBAND = 1e-8
 
 _N_AXES = len(AXES)
+
+_jit = numba.njit(cache=True, nogil=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -119,9 +125,9 @@ class StackedFriction:
 
     :meth:`many` gives the same values as ``drive.friction.torque(w)`` per axis (an axis
     without friction gives 0). The integrators do not evaluate that discontinuous function
-    directly: they follow one smooth branch per axis (:meth:`branch`, the w > 0 or the w < 0
-    law, continued through w = 0) and handle the zero crossings and sticking themselves, with
-    the static thresholds :attr:`ts_pos` = Tf(0+) and :attr:`ts_neg` = Tf(0-).
+    directly: they follow one smooth branch per axis (the w > 0 or the w < 0 law, continued
+    through w = 0) and handle the zero crossings and sticking themselves, with the static
+    thresholds :attr:`ts_pos` = Tf(0+) and :attr:`ts_neg` = Tf(0-).
     """
 
     def __init__(self, drives: tuple[Drive, ...]):
@@ -133,64 +139,26 @@ class StackedFriction:
             else:
                 rows.append((f.Ts_pos, f.W1_pos, f.Tc_pos, f.W2_pos,
                              f.Ts_neg, f.W1_neg, f.Tc_neg, f.W2_neg))
-        p = np.array(rows, dtype=float).T  # (8, 5)
+        p = np.array(rows, dtype=float)  # (5, 8)
         #: Breakaway torques Tf(0+) >= 0 and Tf(0-) <= 0, N m, shape (5,).
-        self.ts_pos = p[0].copy()
-        self.ts_neg = p[4].copy()
-        # Per side: static level, exponent rates -1/W1 and -1/W2, Coulomb level.
-        self._side = {True: (p[0], np.stack([-1.0 / p[1], -1.0 / p[3]]), p[2]),
-                      False: (p[4], np.stack([-1.0 / p[5], -1.0 / p[7]]), p[6])}
-        self._branches: dict[bytes, _BranchFriction] = {}
+        self.ts_pos = p[:, 0].copy()
+        self.ts_neg = p[:, 4].copy()
+        #: Per axis, the two branches as (static level, -1/W1, Coulomb level, -1/W2), w > 0
+        #: side first: shape (5, 8), the layout the compiled integrators read.
+        self.branches = np.column_stack([p[:, 0], -1.0 / p[:, 1], p[:, 2], -1.0 / p[:, 3],
+                                         p[:, 4], -1.0 / p[:, 5], p[:, 6], -1.0 / p[:, 7]])
 
     def many(self, w: np.ndarray) -> np.ndarray:
         """Friction torques Tf(w), N m, for motor speeds of shape (..., 5) in rad/s."""
         w = np.asarray(w, dtype=float)
         out = np.zeros(np.broadcast_shapes(w.shape, (_N_AXES,)))
-        for positive, mask in ((True, w > 0), (False, w < 0)):
-            ts, rates, tc = self._side[positive]
+        for side, mask in ((0, w > 0), (4, w < 0)):
+            ts, r1, tc, r2 = (self.branches[:, side + j] for j in range(4))
             # Each side's law is only evaluated where it applies, so nothing overflows.
             wm = np.where(mask, w, 0.0)
-            value = ts * np.exp(wm * rates[0]) + tc * (1.0 - np.exp(wm * rates[1]))
+            value = ts * np.exp(wm * r1) + tc * (1.0 - np.exp(wm * r2))
             out = np.where(mask, value, out)
         return out
-
-    def branch(self, positive: np.ndarray) -> "_BranchFriction":
-        """The smooth friction law of the w > 0 side (``positive[i]``) or w < 0 side per axis."""
-        positive = np.asarray(positive, dtype=bool)
-        key = positive.tobytes()
-        found = self._branches.get(key)
-        if found is None:
-            parts = [np.where(positive, self._side[True][i], self._side[False][i])
-                     for i in range(3)]
-            found = self._branches[key] = _BranchFriction(*parts)
-        return found
-
-
-class _BranchFriction:
-    """One smooth branch per axis: Tf = Ts exp(-w/W1) + Tc (1 - exp(-w/W2)), shape (5,)."""
-
-    __slots__ = ("ts", "rates", "tc")
-
-    def __init__(self, ts: np.ndarray, rates: np.ndarray, tc: np.ndarray):
-        self.ts, self.rates, self.tc = ts, rates, tc
-
-    def __call__(self, w: np.ndarray) -> np.ndarray:
-        e = np.exp(w * self.rates)
-        return self.ts * e[0] + self.tc * (1.0 - e[1])
-
-
-def _phi_functions(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """exp(z) and phi_k(z) = sum_j z^j / (j + k)!, k = 1, 2, 3, accurate for z near 0 too."""
-    z = np.asarray(z, dtype=float)
-    small = np.abs(z) < 0.1
-    zs = np.where(small, z, 0.0)
-    # Ten series terms leave |z|^10 / 10! < 3e-17 for |z| < 0.1.
-    series = [sum(zs**j / math.factorial(j + k) for j in range(10)) for k in (1, 2, 3)]
-    zb = np.where(small, 1.0, z)
-    em1 = np.expm1(zb)
-    closed = [em1 / zb, (em1 - zb) / zb**2, (em1 - zb - zb**2 / 2) / zb**3]
-    phis = [np.where(small, s, c) for s, c in zip(series, closed)]
-    return np.exp(z), phis[0], phis[1], phis[2]
 
 
 @dataclass(frozen=True)
@@ -209,27 +177,6 @@ class _Plant:
                    B=np.array([d.B for d in drives]) * damping_scale,
                    rg=np.array([d.rg for d in drives]),
                    kakt=np.array([d.ka * d.kt for d in drives]))
-
-
-class _ExpStep:
-    """Constants of one exponential (ETD2) step of length h for the speed ODE of each axis.
-
-    With N(w) = (tau - Tf(w)) / J, the motor speed obeys w' = -(B/J) w + N(w). The linear part
-    is integrated exactly; N is taken as linear in time between its values at the step start
-    and at an exponential-Euler predictor (Cox & Matthews' ETD2), so the step is exact without
-    friction and second order with smooth friction. The position x' = rg w is integrated
-    exactly for the same model of N.
-    """
-
-    def __init__(self, plant: _Plant, h: float):
-        E, p1, p2, p3 = _phi_functions(-plant.B / plant.J * h)
-        self.E = E
-        self.P1 = h * p1
-        self.P2 = h * p2
-        self.Q0 = plant.rg * h * p1
-        self.Q1 = plant.rg * h * h * p2
-        self.Q2 = plant.rg * h * h * p3
-
 
 # --------------------------------------------------------------------------------------------
 # Public entry points
@@ -328,25 +275,18 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
                     encoder_resolution=None if resolution is None else resolution.copy(),
                     substeps=substeps, sample_period=ts)
 
+    packer = LAWS.get(controller.type)
+    if packer is None:
+        raise UnsupportedControllerError(
+            f"controller {controller.name!r}: no {mode}-time simulation for type "
+            f"{controller.type!r} (supported: {', '.join(LAWS)})")
+    law = packer(controller, machine.drives)
     if mode == "discrete":
-        factory = DISCRETE_LAWS.get(controller.type)
-        if factory is None:
-            raise UnsupportedControllerError(
-                f"controller {controller.name!r}: no discrete-time simulation for type "
-                f"{controller.type!r} (supported: {', '.join(DISCRETE_LAWS)})")
-        law = factory(controller, ts, machine.drives)
-        q_act, w, u = _run_discrete(q, ts, plant, law, nominal_friction if friction else None,
-                                    nominal_friction if ff_friction else None, resolution,
-                                    substeps)
+        q_act, w, u = _run_discrete(q, ts, plant, law, nominal_friction, bool(friction),
+                                    bool(ff_friction), resolution, substeps)
     else:
-        factory = CONTINUOUS_LAWS.get(controller.type)
-        if factory is None:
-            raise UnsupportedControllerError(
-                f"controller {controller.name!r}: no continuous-time simulation for type "
-                f"{controller.type!r} (supported: {', '.join(CONTINUOUS_LAWS)})")
-        law = factory(controller, machine.drives)
-        q_act, w, u = _run_continuous(t, q, plant, law, nominal_friction if friction else None,
-                                      nominal_friction if ff_friction else None, substeps)
+        q_act, w, u = _run_continuous(t, q, plant, law, nominal_friction, bool(friction),
+                                      bool(ff_friction), substeps)
     return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
                             controller=controller.name, settings=settings)
 
@@ -404,245 +344,349 @@ def _check_resolution(resolution, mode: str) -> np.ndarray | None:
                          field="encoder_resolution")
     return res
 
-
 # --------------------------------------------------------------------------------------------
-# Integrators
+# Integrators: compiled, one axis per call (the five axes are independent)
 # --------------------------------------------------------------------------------------------
 
-def _deadband(w_cmd: np.ndarray) -> np.ndarray:
-    return np.where(np.abs(w_cmd) < FF_SPEED_DEADBAND, 0.0, w_cmd)
+def _map_axes(run_axis) -> None:
+    """``run_axis(i)`` for the five axes, on up to two threads (the kernels release the GIL)."""
+    workers = min(_N_AXES, os.cpu_count() or 1, 2)
+    if workers == 1:
+        for i in range(_N_AXES):
+            run_axis(i)
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for future in [pool.submit(run_axis, i) for i in range(_N_AXES)]:
+            future.result()
 
 
-def _run_discrete(q, ts, plant: _Plant, law: DiscreteLaw, friction: StackedFriction | None,
-                  ff: StackedFriction | None, resolution, substeps):
-    """Discrete control law + zero-order hold + exponential integration of the plant.
+@_jit
+def _exp_step(J, B, rg, h):
+    """Constants (E, P1, P2, Q0, Q1, Q2) of one exponential (ETD2) step of length h.
 
-    Over one servo period the applied torque tau = kt ka u_k + Tff_k is constant, so each
-    axis follows the autonomous scalar ODE J w' = tau - B w - Tf(w): its speed is monotone,
-    crosses zero at most once, and at w = 0 it sticks (Filippov) while
-    Tf(0-) <= tau <= Tf(0+). The fast path integrates all axes with ETD2 sub-steps on their
-    current friction branch; a period in which some axis crosses zero is redone by
-    :func:`_discrete_period_events`, which locates the crossing within its sub-step and either
-    sticks the axis or continues on the other branch.
+    With N(w) = (tau - Tf(w)) / J, the motor speed obeys w' = -(B/J) w + N(w). The linear
+    part is integrated exactly; N is taken as linear in time between its values at the step
+    start and at an exponential-Euler predictor (Cox & Matthews' ETD2), so the step is exact
+    without friction and second order with smooth friction. The position x' = rg w is
+    integrated exactly for the same model of N. phi_k(z) = sum_j z^j / (j + k)!, z = -B h / J,
+    by its series near 0 (ten terms leave |z|^10 / 10! < 3e-17 for |z| < 0.1).
+    """
+    z = -B / J * h
+    if abs(z) < 0.1:
+        p1 = p2 = p3 = 0.0
+        zj = 1.0
+        f1, f2, f3 = 1.0, 2.0, 6.0  # (j + 1)!, (j + 2)!, (j + 3)! at j = 0
+        for j in range(10):
+            p1 += zj / f1
+            p2 += zj / f2
+            p3 += zj / f3
+            zj *= z
+            f1 *= j + 2
+            f2 *= j + 3
+            f3 *= j + 4
+    else:
+        em1 = math.expm1(z)
+        p1 = em1 / z
+        p2 = (em1 - z) / (z * z)
+        p3 = (em1 - z - z * z / 2) / (z * z * z)
+    return math.exp(z), h * p1, h * p2, rg * h * p1, rg * h * h * p2, rg * h * h * p3
+
+
+@_jit
+def _branch(fr, positive, w):
+    """Friction torque of the w > 0 (``positive``) or w < 0 branch, continued through 0."""
+    o = 0 if positive else 4
+    return fr[o] * math.exp(w * fr[o + 1]) + fr[o + 2] * (1.0 - math.exp(w * fr[o + 3]))
+
+
+@_jit
+def _friction(fr, w):
+    """Tf(w) with Tf(0) = 0 (the nominal model for the feed-forward)."""
+    if w > 0.0:
+        return _branch(fr, True, w)
+    if w < 0.0:
+        return _branch(fr, False, w)
+    return 0.0
+
+
+@_jit
+def _feedforward_torque(fr, w_cmd):
+    """Tff = Tf(w_cmd), commanded speeds below FF_SPEED_DEADBAND counting as zero."""
+    if abs(w_cmd) < FF_SPEED_DEADBAND:
+        return 0.0
+    return _friction(fr, w_cmd)
+
+
+@_jit
+def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, friction, ff, res, substeps,
+                   q_act, w_out, u_out):
+    """One axis: discrete control law + zero-order hold + exponential plant integration.
+
+    Over one servo period the applied torque tau = kt ka u_k + Tff_k is constant, so the axis
+    follows the autonomous scalar ODE J w' = tau - B w - Tf(w): its speed is monotone, crosses
+    zero at most once, and at w = 0 it sticks (Filippov) while Tf(0-) <= tau <= Tf(0+). The
+    period is integrated with ETD2 sub-steps on the current friction branch; a period in which
+    the speed leaves its branch is redone by :func:`_discrete_period_events`, which locates
+    the crossing within its sub-step and either sticks the axis or continues on the other
+    branch.
     """
     n = q.shape[0]
-    q_act = np.empty_like(q)
-    w_out = np.empty_like(q)
-    u_out = np.empty_like(q)
-    tff = np.zeros_like(q)
-    if ff is not None:
-        # Mean commanded speed over the hold interval [t_k, t_k+1); the last one is repeated.
-        v_cmd = np.diff(q, axis=0, append=q[-1:] + (q[-1:] - q[-2:-1]))
-        tff = ff.many(_deadband(v_cmd / ts / plant.rg))
-    inv_j = 1.0 / plant.J
-    kakt = plant.kakt
-    law.reset(q)
-    x = q[0].copy()
-    w = np.zeros(_N_AXES)
-    if friction is None:
-        step = _ExpStep(plant, ts)
-        E, P1, Q0, Q1 = step.E, step.P1, step.Q0, step.Q1
+    state = np.zeros(N_DISCRETE_STATES)
+    law_reset(kind, p, state)
+    inv_j = 1.0 / J
+    if friction:
+        E, P1, P2, Q0, Q1, Q2 = _exp_step(J, B, rg, ts / substeps)
     else:
-        step = _ExpStep(plant, ts / substeps)
-        E, P1, P2, Q0, Q1, Q2 = step.E, step.P1, step.P2, step.Q0, step.Q1, step.Q2
-        ts_pos, ts_neg = friction.ts_pos, friction.ts_neg
-    rng = range(substeps)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for k in range(n):
-            q_act[k] = x
-            w_out[k] = w
-            y = x if resolution is None else np.round(x / resolution) * resolution
-            u = law.step(q[k] - y, y)
-            u_out[k] = u
-            if k == n - 1:
-                break
-            tau = kakt * u + tff[k]
-            if friction is None:
-                n0 = tau * inv_j
-                x = x + Q0 * w + Q1 * n0
-                w = E * w + P1 * n0
-                continue
-            at_rest = w == 0.0
-            if at_rest.any():
-                # At rest, tau decides: stick for the whole period, or break away its way.
-                stuck = at_rest & (tau <= ts_pos) & (tau >= ts_neg)
-                positive = np.where(at_rest, tau > 0.0, w > 0.0)
-                fb = friction.branch(positive)
-                # A stuck axis gets exactly its branch's static torque: it stays at w = 0.
-                tau_eff = np.where(stuck, fb.ts, tau)
-            else:
-                stuck = at_rest
-                positive = w > 0.0
-                fb = friction.branch(positive)
-                tau_eff = tau
-            x0, w0 = x, w
-            for _ in rng:
-                n0 = (tau_eff - fb(w)) * inv_j
-                a = E * w + P1 * n0
-                dn = (tau_eff - fb(a)) * inv_j - n0
-                x = x + Q0 * w + Q1 * n0 + Q2 * dn
-                w = a + P2 * dn
-            left = np.where(positive, w <= 0.0, w >= 0.0) & ~stuck
-            if left.any():
-                x, w = _discrete_period_events(x0, w0, tau, positive, stuck, plant, friction,
-                                               step, substeps, ts / substeps)
-    return q_act, w_out, u_out
+        E, P1, P2, Q0, Q1, Q2 = _exp_step(J, B, rg, ts)
+    ts_pos, ts_neg = fr[0], fr[4]
+    x = q[0]
+    w = 0.0
+    for k in range(n):
+        q_act[k] = x
+        w_out[k] = w
+        y = x if res == 0.0 else np.rint(x / res) * res
+        u = discrete_step(kind, p, state, k, q[k] - y, y, q, ts)
+        u_out[k] = u
+        if k == n - 1:
+            break
+        tau = kakt * u
+        if ff:
+            # Mean commanded speed over the hold interval [t_k, t_k+1).
+            tau = tau + _feedforward_torque(fr, (q[k + 1] - q[k]) / ts / rg)
+        if not friction:
+            n0 = tau * inv_j
+            x = x + Q0 * w + Q1 * n0
+            w = E * w + P1 * n0
+            continue
+        if w == 0.0:
+            # At rest, tau decides: stick for the whole period, or break away its way.
+            stuck = tau <= ts_pos and tau >= ts_neg
+            positive = tau > 0.0
+        else:
+            stuck = False
+            positive = w > 0.0
+        if stuck:
+            continue  # the branch's static torque exactly balances: w stays 0, x stays
+        x0, w0 = x, w
+        for _ in range(substeps):
+            n0 = (tau - _branch(fr, positive, w)) * inv_j
+            a = E * w + P1 * n0
+            dn = (tau - _branch(fr, positive, a)) * inv_j - n0
+            x = x + Q0 * w + Q1 * n0 + Q2 * dn
+            w = a + P2 * dn
+        if (w <= 0.0) if positive else (w >= 0.0):
+            x, w = _discrete_period_events(x0, w0, tau, positive, J, B, rg, fr, substeps,
+                                           ts / substeps)
 
 
-def _discrete_period_events(x, w, tau, positive, stuck, plant: _Plant,
-                            friction: StackedFriction, step: "_ExpStep", substeps: int,
-                            h: float):
-    """One servo period with zero-crossing location; rare, so written for clarity."""
-    inv_j = 1.0 / plant.J
-    positive = positive.copy()
-    stuck = stuck.copy()
-    can_stick = (tau <= friction.ts_pos) & (tau >= friction.ts_neg)
+@_jit
+def _discrete_period_events(x, w, tau, positive, J, B, rg, fr, substeps, h):
+    """One servo period with zero-crossing location (rare, so written for clarity)."""
+    E, P1, P2, Q0, Q1, Q2 = _exp_step(J, B, rg, h)
+    inv_j = 1.0 / J
+    can_stick = tau <= fr[0] and tau >= fr[4]
+    stuck = False
     for _ in range(substeps):
-        fb = friction.branch(positive)
-        tau_eff = np.where(stuck, fb.ts, tau)
-        n0 = (tau_eff - fb(w)) * inv_j
-        a = step.E * w + step.P1 * n0
-        dn = (tau_eff - fb(a)) * inv_j - n0
-        x1 = x + step.Q0 * w + step.Q1 * n0 + step.Q2 * dn
-        w1 = a + step.P2 * dn
-        crossed = np.where(positive, w1 <= 0.0, w1 >= 0.0) & ~stuck
-        if crossed.any():
+        if stuck:
+            break  # w = 0 and x stay for the rest of the period
+        n0 = (tau - _branch(fr, positive, w)) * inv_j
+        a = E * w + P1 * n0
+        dn = (tau - _branch(fr, positive, a)) * inv_j - n0
+        x1 = x + Q0 * w + Q1 * n0 + Q2 * dn
+        w1 = a + P2 * dn
+        if (w1 <= 0.0) if positive else (w1 >= 0.0):
             # Speed reaches zero at theta h (linear in time within the sub-step); the
             # position gets the trapezoid of that part, an O(h^3) local error per event.
-            theta = np.where(crossed, w / np.where(crossed, w - w1, 1.0), 1.0)
-            x_zero = x + plant.rg * (0.5 * theta * h) * w
-            sticks = crossed & can_stick
-            flips = crossed & ~can_stick
-            x1 = np.where(sticks, x_zero, x1)
-            w1 = np.where(sticks, 0.0, w1)
-            stuck = stuck | sticks
-            if flips.any():
+            theta = w / (w - w1)
+            x_zero = x + rg * (0.5 * theta * h) * w
+            if can_stick:
+                x1, w1, stuck = x_zero, 0.0, True
+            else:
                 # Monotone speed: the rest of the sub-step runs from w = 0 on the other branch.
-                positive = np.where(flips, ~positive, positive)
-                fb = friction.branch(positive)
-                rest = _ExpStep(plant, (1.0 - theta) * h)
-                n0 = (tau - fb.ts) * inv_j
-                a = rest.P1 * n0
-                dn = (tau - fb(a)) * inv_j - n0
-                x1 = np.where(flips, x_zero + rest.Q1 * n0 + rest.Q2 * dn, x1)
-                w1 = np.where(flips, a + rest.P2 * dn, w1)
+                positive = not positive
+                _, R1, R2, _, S1, S2 = _exp_step(J, B, rg, (1.0 - theta) * h)
+                n0 = (tau - fr[0 if positive else 4]) * inv_j
+                a = R1 * n0
+                dn = (tau - _branch(fr, positive, a)) * inv_j - n0
+                x1 = x_zero + S1 * n0 + S2 * dn
+                w1 = a + R2 * dn
         x, w = x1, w1
     return x, w
 
 
-def _run_continuous(t, q, plant: _Plant, law: ContinuousLaw, friction: StackedFriction | None,
-                    ff: StackedFriction | None, substeps):
-    """Continuous control law, command from a quintic interpolant, classical RK4 sub-steps.
+@_jit
+def _taylor_coefficients(knots, coefs, x, l, work, taylor):
+    """taylor[j] = X^(j)(x) / j!, j = 0 .. 5, of the quintic B-spline interpolant at x.
 
-    Friction follows one smooth branch per axis within a sub-step. When an axis's speed
-    reaches zero, the crossing is located linearly within the sub-step; the axis then sticks
-    (w = 0) while the applied torque stays within [Tf(0-), Tf(0+)], checked at every sub-step
-    start, or continues on the other branch.
+    ``coefs[j]`` holds the B-spline coefficients of the j-th derivative spline, whose knots are
+    ``knots[j:-j]`` (degree 5 - j): with that offset, de Boor's algorithm for each derivative
+    runs on the original knot interval l (t[l] <= x < t[l+1]; searched from l, returned).
     """
-    n = q.shape[0]
-    spline = make_interp_spline(t, q, k=5)
-    dspline = spline.derivative()
-    ddspline = dspline.derivative()
-    # Command and its rate at every RK4 stage time: t_k + j h / 2, j = 0 .. 2 m (n - 1).
+    last = knots.shape[0] - 7
+    while l < last and x >= knots[l + 1]:
+        l += 1
+    factorial = 1.0
+    for j in range(6):
+        degree = 5 - j
+        for i in range(degree + 1):
+            work[i] = coefs[j, i + l - 5]
+        for r in range(1, degree + 1):
+            for i in range(degree, r - 1, -1):
+                left = knots[i + l - degree]
+                alpha = (x - left) / (knots[i + 1 + l - r] - left)
+                work[i] = (1.0 - alpha) * work[i - 1] + alpha * work[i]
+        if j > 1:
+            factorial *= j
+        taylor[j] = work[degree] / factorial
+    return l
+
+
+@_jit
+def _command_at(taylor, d):
+    """X, X', X'' at d past the Taylor point (see :func:`_taylor_coefficients`)."""
+    c0, c1, c2, c3, c4, c5 = taylor[0], taylor[1], taylor[2], taylor[3], taylor[4], taylor[5]
+    value = ((((c5 * d + c4) * d + c3) * d + c2) * d + c1) * d + c0
+    slope = (((5 * c5 * d + 4 * c4) * d + 3 * c3) * d + 2 * c2) * d + c1
+    curve = ((20 * c5 * d + 12 * c4) * d + 6 * c3) * d + 2 * c2
+    return value, slope, curve
+
+
+@_jit
+def _continuous_rhs(kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                    X, Xd, Xdd, tff):
+    """Derivatives (x', w', s0', s1', s2'), the output u and the applied torque tau."""
+    v = rg * w
+    e = X - x
+    edot = Xd - v
+    u = continuous_output(kind, p, s0, s1, s2, e, edot, v, Xdd)
+    tau = kakt * u + tff
+    torque = tau - B * w
+    if friction:
+        torque = torque - _branch(fr, positive, w)
+    wdot = 0.0 if stuck else torque / J
+    d0, d1, d2 = continuous_derivative(kind, p, s0, s1, s2, e, edot, v, Xdd)
+    return v, wdot, d0, d1, d2, u, tau
+
+
+@_jit
+def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction, ff, substeps,
+                     q_act, w_out, u_out):
+    """One axis: continuous control law, command from a quintic interpolant, RK4 sub-steps.
+
+    Stage times are t_k + j h / 2 (j = 0 .. 2 m, h = Ts / m); the command and its first two
+    derivatives there come from the interpolant's Taylor polynomial at t_k (exact: the
+    interpolant is one quintic on [t_k, t_k+1)). Friction follows one smooth branch within a
+    sub-step. When the speed reaches zero, the crossing is located linearly within the
+    sub-step; the axis then sticks (w = 0) while the applied torque stays within
+    [Tf(0-), Tf(0+)], checked at every sub-step start, or continues on the other branch. The
+    axis starts at rest (stuck, when it has friction).
+    """
+    n = t.shape[0]
     m = substeps
-    h = (t[-1] - t[0]) / (n - 1) / m
-    t_stage = t[0] + 0.5 * h * np.arange(2 * m * (n - 1) + 1)
-    # Pin the sample instants to the given t so that the stage at t_k is exactly t_k.
-    t_stage[:: 2 * m] = t
-    X = spline(t_stage)
-    Xd = dspline(t_stage)
-    Xdd = ddspline(t_stage)
-    tff = np.zeros_like(X) if ff is None else ff.many(_deadband(Xd / plant.rg))
-    J, B, rg, kakt = plant.J, plant.B, plant.rg, plant.kakt
-    zero = np.zeros(_N_AXES)
-
-    def rhs(x, w, s, i, fb, free):
-        v = rg * w
-        e = X[i] - x
-        edot = Xd[i] - v
-        u = law.output(s, e, edot, v, Xdd[i])
-        tau = kakt * u + tff[i]
-        torque = tau - B * w
-        if fb is not None:
-            torque = torque - fb(w)
-        wdot = torque / J
-        if free is not None:
-            wdot = wdot * free
-        return v, wdot, law.derivative(s, e, edot, v, Xdd[i]), u, tau
-
-    q_act = np.empty_like(q)
-    w_out = np.empty_like(q)
-    u_out = np.empty_like(q)
-    x = q[0].copy()
-    w = zero.copy()
-    s = np.zeros((law.n_states, _N_AXES))
-    fb = None
-    free = None  # float mask, 0 on stuck axes; None when no axis is stuck
-    stuck = np.zeros(_N_AXES, dtype=bool)
-    positive = np.ones(_N_AXES, dtype=bool)
-    if friction is not None:
-        # Start at rest: every axis is stuck until the applied torque breaks it away.
-        stuck[:] = True
-        free = zero.copy()
-        fb = friction.branch(positive)
-        ts_pos, ts_neg = friction.ts_pos, friction.ts_neg
+    h = (t[n - 1] - t[0]) / (n - 1) / m
     h2, h6 = h / 2, h / 6
-    i = 0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for k in range(n):
-            q_act[k] = x
-            w_out[k] = w
-            for j in range(m if k < n - 1 else 1):
-                dx1, dw1, ds1, u1, tau1 = rhs(x, w, s, i, fb, free)
-                if free is not None:
-                    breaks = stuck & ((tau1 > ts_pos) | (tau1 < ts_neg))
-                    if breaks.any():
-                        stuck = stuck & ~breaks
-                        positive = np.where(breaks, tau1 > 0.0, positive)
-                        fb = friction.branch(positive)
-                        free = None if not stuck.any() else (~stuck).astype(float)
-                        dx1, dw1, ds1, u1, tau1 = rhs(x, w, s, i, fb, free)
-                if j == 0:
-                    u_out[k] = u1
-                if k == n - 1:
-                    break
-                dx2, dw2, ds2, _, _ = rhs(x + h2 * dx1, w + h2 * dw1, s + h2 * ds1, i + 1,
-                                          fb, free)
-                dx3, dw3, ds3, _, _ = rhs(x + h2 * dx2, w + h2 * dw2, s + h2 * ds2, i + 1,
-                                          fb, free)
-                dx4, dw4, ds4, _, tau4 = rhs(x + h * dx3, w + h * dw3, s + h * ds3, i + 2,
-                                             fb, free)
-                x1 = x + h6 * (dx1 + 2 * (dx2 + dx3) + dx4)
-                w1 = w + h6 * (dw1 + 2 * (dw2 + dw3) + dw4)
-                s = s + h6 * (ds1 + 2 * (ds2 + ds3) + ds4)
-                i += 2
-                if fb is not None:
-                    crossed = np.where(positive, w1 <= 0.0, w1 >= 0.0) & ~stuck
-                    if crossed.any():
-                        x1, w1, positive, stuck = _continuous_crossing(
-                            x, w, x1, w1, tau4, crossed, positive, stuck, plant, friction, h)
-                        fb = friction.branch(positive)
-                        free = None if not stuck.any() else (~stuck).astype(float)
-                x, w = x1, w1
+    x, w = q0, 0.0
+    s0 = s1 = s2 = 0.0
+    stuck = friction
+    positive = True
+    ts_pos, ts_neg = fr[0], fr[4]
+    work = np.empty(6)
+    taylor = np.empty(6)
+    l = 5
+    for k in range(n):
+        q_act[k] = x
+        w_out[k] = w
+        l = _taylor_coefficients(knots, coefs, t[k], l, work, taylor)
+        X1, Xd1, Xdd1 = taylor[0], taylor[1], 2.0 * taylor[2]
+        tff1 = _feedforward_torque(fr, Xd1 / rg) if ff else 0.0
+        for j in range(m if k < n - 1 else 1):
+            dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                X1, Xd1, Xdd1, tff1)
+            if stuck and (tau1 > ts_pos or tau1 < ts_neg):
+                stuck = False
+                positive = tau1 > 0.0
+                dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
+                    kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
+                    X1, Xd1, Xdd1, tff1)
+            if j == 0:
+                u_out[k] = u1
+            if k == n - 1:
+                break
+            i = 2 * m * k + 2 * j
+            X2, Xd2, Xdd2 = _command_at(taylor, t[0] + h2 * (i + 1) - t[k])
+            X3, Xd3, Xdd3 = _command_at(taylor, (t[k + 1] if j == m - 1
+                                                 else t[0] + h2 * (i + 2)) - t[k])
+            tff2 = _feedforward_torque(fr, Xd2 / rg) if ff else 0.0
+            tff3 = _feedforward_torque(fr, Xd3 / rg) if ff else 0.0
+            dx2, dw2, ds2a, ds2b, ds2c, _, _ = _continuous_rhs(
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h2 * dx1,
+                w + h2 * dw1, s0 + h2 * ds1a, s1 + h2 * ds1b, s2 + h2 * ds1c, X2, Xd2, Xdd2,
+                tff2)
+            dx3, dw3, ds3a, ds3b, ds3c, _, _ = _continuous_rhs(
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h2 * dx2,
+                w + h2 * dw2, s0 + h2 * ds2a, s1 + h2 * ds2b, s2 + h2 * ds2c, X2, Xd2, Xdd2,
+                tff2)
+            dx4, dw4, ds4a, ds4b, ds4c, _, tau4 = _continuous_rhs(
+                kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h * dx3,
+                w + h * dw3, s0 + h * ds3a, s1 + h * ds3b, s2 + h * ds3c, X3, Xd3, Xdd3, tff3)
+            x1 = x + h6 * (dx1 + 2 * (dx2 + dx3) + dx4)
+            w1 = w + h6 * (dw1 + 2 * (dw2 + dw3) + dw4)
+            s0 = s0 + h6 * (ds1a + 2 * (ds2a + ds3a) + ds4a)
+            s1 = s1 + h6 * (ds1b + 2 * (ds2b + ds3b) + ds4b)
+            s2 = s2 + h6 * (ds1c + 2 * (ds2c + ds3c) + ds4c)
+            if friction and not stuck and ((w1 <= 0.0) if positive else (w1 >= 0.0)):
+                # The crossing at theta h by linear interpolation of w; tau4 is the applied
+                # torque at the sub-step end (an O(h) error in the torque over the O(h) rest).
+                theta = w / (w - w1)
+                x_zero = x + rg * (0.5 * theta * h) * w
+                if tau4 <= ts_pos and tau4 >= ts_neg:
+                    stuck = True
+                    x1, w1 = x_zero, 0.0
+                else:
+                    # Euler from rest over the rest of the sub-step, on the new branch.
+                    positive = not positive
+                    rest = (1.0 - theta) * h
+                    w1 = (tau4 - fr[0 if positive else 4]) / J * rest
+                    x1 = x_zero + rg * 0.5 * rest * w1
+            x, w = x1, w1
+            X1, Xd1, Xdd1, tff1 = X3, Xd3, Xdd3, tff3
+
+
+def _run_discrete(q, ts, plant: _Plant, law: LawParameters, friction: StackedFriction,
+                  use_friction: bool, use_ff: bool, resolution, substeps):
+    n = q.shape[0]
+    q_act, w_out, u_out = (np.empty((n, _N_AXES)) for _ in range(3))
+    res = np.zeros(_N_AXES) if resolution is None else resolution
+
+    def run_axis(i):
+        _discrete_axis(q[:, i], ts, law.kind, law.params[i], plant.J[i], plant.B[i],
+                       plant.rg[i], plant.kakt[i], friction.branches[i], use_friction,
+                       use_ff, res[i], substeps, q_act[:, i], w_out[:, i], u_out[:, i])
+
+    _map_axes(run_axis)
     return q_act, w_out, u_out
 
 
-def _continuous_crossing(x, w, x1, w1, tau, crossed, positive, stuck, plant: _Plant,
-                         friction: StackedFriction, h: float):
-    """Zero crossing of the speed within one RK4 sub-step (rare): stick or change branch.
+def _run_continuous(t, q, plant: _Plant, law: LawParameters, friction: StackedFriction,
+                    use_friction: bool, use_ff: bool, substeps):
+    n = q.shape[0]
+    q_act, w_out, u_out = (np.empty((n, _N_AXES)) for _ in range(3))
 
-    The crossing is placed at theta h by linear interpolation of w; ``tau`` is the applied
-    torque at the sub-step end (an O(h) error in the torque over the O(h) remainder).
-    """
-    theta = np.where(crossed, w / np.where(crossed, w - w1, 1.0), 1.0)
-    x_zero = x + plant.rg * (0.5 * theta * h) * w
-    can_stick = (tau <= friction.ts_pos) & (tau >= friction.ts_neg)
-    sticks = crossed & can_stick
-    flips = crossed & ~can_stick
-    positive = np.where(flips, ~positive, positive)
-    # Euler from rest over the rest of the sub-step, on the new branch.
-    rest = (1.0 - theta) * h
-    w_rest = (tau - friction.branch(positive).ts) / plant.J * rest
-    x1 = np.where(sticks, x_zero, np.where(flips, x_zero + plant.rg * 0.5 * rest * w_rest, x1))
-    w1 = np.where(sticks, 0.0, np.where(flips, w_rest, w1))
-    return x1, w1, positive, stuck | sticks
+    # Quintic interpolant of the samples (one factorization for the five axes) and its
+    # derivative splines, evaluated inside the loop: nothing per stage time is stored.
+    spline = make_interp_spline(t, q, k=5)
+    derivatives = [spline] + [spline.derivative(j) for j in range(1, 6)]
+    n_coefs = spline.c.shape[0]
+
+    def run_axis(i):
+        coefs = np.zeros((6, n_coefs))
+        for j, d in enumerate(derivatives):
+            coefs[j, :n_coefs - j] = d.c[:n_coefs - j, i]
+        _continuous_axis(t, q[0, i], spline.t, coefs, law.kind, law.params[i], plant.J[i],
+                         plant.B[i], plant.rg[i], plant.kakt[i], friction.branches[i],
+                         use_friction, use_ff, substeps, q_act[:, i], w_out[:, i],
+                         u_out[:, i])
+
+    _map_axes(run_axis)
+    return q_act, w_out, u_out
