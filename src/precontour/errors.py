@@ -7,6 +7,17 @@ the file, the row and the field where the problem is.
 
 from __future__ import annotations
 
+import logging
+
+#: Where one-line notices go (a normalization, an unwrap): the command line prints them as
+#: ``precontour: note: ...``; a library user gets them through :mod:`logging`.
+NOTICES = logging.getLogger("precontour")
+
+
+def notice(message: str) -> None:
+    """Tell the user, in one line, about something that was fixed up on the way in."""
+    NOTICES.warning(message)
+
 
 class PrecontourError(Exception):
     """Root of all precontour errors."""
@@ -32,15 +43,27 @@ class InputError(PrecontourError, ValueError):
         self.source = source
         self.row = row
         self.field = field
-        where = []
-        if source is not None:
-            where.append(str(source))
-        if row is not None:
-            where.append(f"row {row}")
-        if field is not None:
-            where.append(f"field {field!r}")
-        prefix = ": ".join([", ".join(where)]) + ": " if where else ""
-        super().__init__(prefix + message)
+        super().__init__(_located(message, source, row, field))
+
+
+def _located(message: str, source, row, field) -> str:
+    where = []
+    if source is not None:
+        where.append(str(source))
+    if row is not None:
+        where.append(f"row {row}")
+    if field is not None:
+        where.append(f"field {field!r}")
+    return (", ".join(where) + ": " if where else "") + message
+
+
+class OutputError(InputError):
+    """An output cannot go where it was asked to: an input would be overwritten, the folder is
+    missing, read-only or a file, the disk is full. The message names the output. (An output
+    location is user input too, so this is an :class:`InputError`.)"""
+
+    def __init__(self, message: str, *, source: str | None = None):
+        super().__init__(message, source=source)
 
 
 class MachineFileError(InputError):

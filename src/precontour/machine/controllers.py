@@ -181,6 +181,7 @@ class Controller:
     name: str
     type: str
     axes: tuple
+    source: str = ""
 
     @property
     def is_linear(self) -> bool:
@@ -196,7 +197,12 @@ class Controller:
                 "precontour.simulation.virtual_machine.simulate instead")
         models = tuple(ctrl.error_model(drive) for ctrl, drive in zip(self.axes, drives))
         for model in models:
-            model.check_stable()
+            try:
+                model.check_stable()
+            except UnsupportedControllerError as exc:
+                where = f"{self.source}: " if self.source else ""
+                raise UnsupportedControllerError(
+                    f"{where}[controllers.{self.name}] {exc}: check its gains") from None
         return models
 
 
@@ -211,7 +217,7 @@ class _PerAxisParser:
         kind = table.get_str("type")
         axes = tuple(self.gains_cls.from_table(table.get_table(axis)) for axis in AXES)
         table.finish()
-        return Controller(name=name, type=kind, axes=axes)
+        return Controller(name=name, type=kind, axes=axes, source=table.source)
 
 
 CONTROLLER_TYPES: dict[str, Callable[[str, ConfigTable], Controller]] = {

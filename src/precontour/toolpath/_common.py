@@ -16,6 +16,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InputError, ToolPathError
+from ..files import check_input_file
 from ..machine.kinematics import UNIT_TOLERANCE, normalize_orientations
 from . import ToolPath
 
@@ -83,11 +84,11 @@ def feed_factor(feed_units: str) -> float:
 
 
 def read_bytes(path: str | Path) -> bytes:
-    """Read a tool-path file, turning OS errors into :class:`ToolPathError`."""
+    """Read a tool-path file, turning OS errors into :class:`ToolPathError` (a folder or a
+    FIFO is called that)."""
+    check_input_file(path, "tool-path file", error=ToolPathError)
     try:
         return Path(path).read_bytes()
-    except FileNotFoundError:
-        raise ToolPathError("no such tool-path file", source=str(path)) from None
     except OSError as exc:
         raise ToolPathError(f"cannot read tool-path file: {exc.strerror or exc}",
                             source=str(path)) from None
@@ -142,7 +143,7 @@ def finish(P, O, feed, *, lines, source: str, format: str, empty: str, rapid=Non
     bad = ~np.isfinite(PO)
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise ToolPathError(f"value is not finite ({PO[r, c]!r})", source=source,
+        raise ToolPathError(f"value is not finite ({float(PO[r, c])})", source=source,
                             row=int(lines[r]), field=_FIELDS[c])
     bad_feed = (feed <= 0.0) | np.isinf(feed)
     if bad_feed.any():

@@ -195,11 +195,26 @@ def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True) -
     v[:, :3] *= scale[rows, None]
     q = _positions(v, distance[rows] == 910)
     q[:, 3:] = np.radians(q[:, 3:])
+    _check_tilt(q[:, 3], kinematics, rows, state)
     rapid = motion[rows] == 0
     P, O = kinematics.forward(q)
     return finish(P, O, np.where(rapid, np.nan, feed[rows]), lines=rows + 1, source=source,
                   format="gcode", empty="no motion (no G0/G1 block with an axis word)",
                   rapid=rapid, skipped=skipped, axes=q)
+
+
+def _check_tilt(a: np.ndarray, kinematics, rows: np.ndarray, state: "_Blocks") -> None:
+    """The tilt axis A stays within +-180 degrees and the machine's A travel, if it has one."""
+    low = getattr(kinematics, "a_min", None)
+    high = getattr(kinematics, "a_max", None)
+    low = -np.pi if low is None else max(low, -np.pi)
+    high = np.pi if high is None else min(high, np.pi)
+    slack = 1e-9
+    out = (a < low - slack) | (a > high + slack)
+    if out.any():
+        k = int(np.flatnonzero(out)[0])
+        state.fail(int(rows[k]), f"A = {np.degrees(a[k]):.6g} deg is outside the tilt axis's "
+                                 f"travel [{np.degrees(low):g}, {np.degrees(high):g}] deg", "A")
 
 
 def _positions(v: np.ndarray, incremental: np.ndarray) -> np.ndarray:
