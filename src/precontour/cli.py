@@ -13,6 +13,7 @@ import argparse
 import logging
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +77,18 @@ def main(argv: list[str] | None = None) -> int:
 
 def _one_line(exc: Exception) -> str:
     return " ".join(str(exc).split("\n"))
+
+
+@contextmanager
+def _about(path):
+    """Name ``path`` in an input error raised by a computation on its values."""
+    try:
+        yield
+    except InputError as exc:
+        located = exc.located(str(path))
+        if located is exc:
+            raise
+        raise located from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -269,8 +282,9 @@ def run_predict(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     models = machine.controller(args.controller).error_models(machine.drives)
     traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
-    prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
-                                  tol_rotary=args.tol_rotary)
+    with _about(args.trajectory):
+        prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
+                                      tol_rotary=args.tol_rotary)
     e = prediction(traj.t)
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
@@ -324,9 +338,10 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    result = compensate(traj, machine.kinematics, models, method=args.method,
-                        iterations=args.iterations, tol_linear=args.tol_linear,
-                        tol_rotary=args.tol_rotary, progress=progress)
+    with _about(args.trajectory):
+        result = compensate(traj, machine.kinematics, models, method=args.method,
+                            iterations=args.iterations, tol_linear=args.tol_linear,
+                            tol_rotary=args.tol_rotary, progress=progress)
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
@@ -354,9 +369,10 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.reference and not np.array_equal(reference_traj.t, commands.t):
         raise InputError("reference and command files must have the same time stamps",
                          source=str(args.reference), field="t")
-    result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
-                      friction=args.friction == "on", ff_friction=args.ff_friction == "on",
-                      inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
+    with _about(args.commands):
+        result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
+                          friction=args.friction == "on", ff_friction=args.ff_friction == "on",
+                          inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
     columns = {"t": result.t}
     columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
     contour = None

@@ -14,6 +14,15 @@ import logging
 NOTICES = logging.getLogger("precontour")
 
 
+def plain(value):
+    """``value`` as a plain Python object, so that messages show ``0.5``, not
+    ``np.float64(0.5)`` (numpy scalars and 0-d arrays become Python numbers and strings)."""
+    item = getattr(value, "item", None)
+    if item is not None and getattr(value, "ndim", None) == 0:
+        return item()
+    return value
+
+
 def notice(message: str) -> None:
     """Tell the user, in one line, about something that was fixed up on the way in."""
     NOTICES.warning(message)
@@ -40,10 +49,18 @@ class InputError(PrecontourError, ValueError):
 
     def __init__(self, message: str, *, source: str | None = None,
                  row: int | None = None, field: str | None = None):
+        self.message = message
         self.source = source
         self.row = row
         self.field = field
         super().__init__(_located(message, source, row, field))
+
+    def located(self, source: str) -> "InputError":
+        """The same error naming ``source`` if it names no file yet (for callers that know
+        which file the values came from)."""
+        if self.source is not None or type(self) is not InputError:
+            return self
+        return InputError(self.message, source=source, row=self.row, field=self.field)
 
 
 def _located(message: str, source, row, field) -> str:

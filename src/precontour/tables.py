@@ -22,7 +22,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 
 from .machine.drives import AXES
-from .errors import InputError, notice
+from .errors import InputError, OutputError, notice
 from .files import atomic_write, check_input_file, check_outputs
 from .machine.kinematics import angle_between, normalize_orientations
 from .trajectory.sampled import MIN_SAMPLES, Trajectory, check_uniform_time
@@ -51,9 +51,9 @@ MAX_TIME = 1e7
 REFERENCE_TOLERANCE = (0.01, 1e-3)
 #: The same for a command file measured against its own reference columns (``simulate``
 #: without ``--reference``): pre-compensated commands differ from their reference by the
-#: correction, which is of the size of the predicted errors (at most a few tenths of a mm and
-#: mrad on the built-in paths).
-COMMAND_TOLERANCE = (2.0, 0.02)
+#: correction, which is of the size of the predicted errors (measured on the built-in paths,
+#: both methods, PID and P-PI: at most 0.33 mm and 6.9 mrad, with ``pid-low`` on ``fan``).
+COMMAND_TOLERANCE = (2.0, 0.05)
 
 
 def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[str] = ()
@@ -66,6 +66,8 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
     path = Path(path)
     source = str(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise InputError("is a folder, not a file", source=source)
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"unsupported file type {suffix or '(none)'!r}; use one of "
                          f"{', '.join(SUPPORTED_SUFFIXES)}", source=source)
@@ -217,6 +219,8 @@ def check_output_table(path: str | Path, inputs: Iterable[str | Path] = ()) -> P
     (a supported suffix) at a place :func:`precontour.files.check_outputs` allows."""
     path = Path(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise OutputError("is an existing folder; give a file name", source=str(path))
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "
                          f"{', '.join(SUPPORTED_SUFFIXES)}", source=str(path))
@@ -241,7 +245,8 @@ def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     try:
         header = header_bytes.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError:
-        raise InputError("the header line is not UTF-8 text", source=source, row=0) from None
+        raise InputError("the header line is not UTF-8 text (binary data?)",
+                         source=source) from None
     if not header.strip():
         raise InputError("empty file (no header line)", source=source)
     names = [name.strip().strip('"').strip() for name in header.strip().split(",")]
@@ -349,14 +354,16 @@ def _read_parquet(path: Path) -> dict[str, np.ndarray]:
 
     source = str(path)
     try:
+        names = pq.read_schema(path).names
+        for k, name in enumerate(names):
+            if name in names[:k]:
+                raise InputError("column name appears twice", source=source, field=name)
         table = pq.read_table(path)
+    except InputError:
+        raise
     except Exception as exc:  # pyarrow raises its own exception types
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read parquet file: {reason}", source=source) from None
-    names = table.column_names
-    for k, name in enumerate(names):
-        if name in names[:k]:
-            raise InputError("column name appears twice", source=source, field=name)
     raw = {}
     for name in names:
         try:

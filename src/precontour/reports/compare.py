@@ -25,7 +25,7 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from .demo import MACHINE_MODELS
 from .progress import Progress, StepCounter
 from ..machine.drives import AXES, ROTARY_AXES
-from ..errors import InputError
+from ..errors import InputError, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
@@ -492,7 +492,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     pids = tuple(pids)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
             or iterations < 1:
-        raise InputError(f"iterations must be a whole number >= 1, got {iterations!r}",
+        raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     names = ((sliding,) if sliding else ()) + ((ppi,) if ppi else ()) + pids
     if not names:

@@ -25,7 +25,7 @@ from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
-from ..errors import InputError
+from ..errors import InputError, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
@@ -234,6 +234,6 @@ def _check_names(paths, controllers, iterations) -> tuple[tuple[str, ...], tuple
                          field="controllers")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
             or iterations < 1:
-        raise InputError(f"iterations must be a whole number >= 1, got {iterations!r}",
+        raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     return paths, controllers

@@ -37,6 +37,10 @@ IGNORED_G = frozenset(["G17", "G18", "G19", "G40", "G43", "G49", "G54", "G55", "
 #: Words other than G, F and the axes that are read and ignored.
 IGNORED_WORDS = frozenset("NOMSTHD")
 
+#: Largest magnitude of a word's number other than a block number N (mm, inch, degrees,
+#: mm/min, s): 1 km, about 2,800 turns, and beyond anything a machine or its feed could do.
+MAX_WORD_VALUE = 1e6
+
 _UNSUPPORTED_G = {
     "G2": "circular interpolation (G2) is not supported; output linear G1 moves",
     "G3": "circular interpolation (G3) is not supported; output linear G1 moves",
@@ -158,6 +162,13 @@ def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True) -
     marks = newline[is_letter | newline]
     n_lines = int(newline.sum()) + 1
     line = np.cumsum(marks)[~marks]
+    # Numbers too long for a double, and coordinates no machine has (1 km): refused here, by
+    # line, before they overflow the kinematics or the trajectory's sample count.
+    huge = ~(np.abs(value) <= MAX_WORD_VALUE) & (letter != ord("N"))
+    if huge.any():
+        k = int(np.flatnonzero(huge)[0])
+        raise ToolPathError(f"number out of range (|{chr(letter[k])}| > {MAX_WORD_VALUE:g})",
+                            source=source, row=int(line[k]) + 1, field=chr(letter[k]))
 
     state = _Blocks(text, line, letter, value, n_lines, source)
     state.check_words(skipped)

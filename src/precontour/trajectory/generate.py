@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, plain
 from ..machine.drives import AXES
 from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
                        plan_feed)
@@ -24,11 +24,11 @@ from .sampled import Trajectory
 #: Default time (s) the final command is held so that the drives settle inside the trajectory.
 DEFAULT_DWELL = 0.2
 
-#: Peak memory per trajectory sample of the heaviest command that takes a trajectory
-#: (``compare``: six compensations and seven simulations of it), bytes; measured with
-#: ``scripts/measure_memory.py`` (peak RSS growth over sample count, built-in ``paper`` path
-#: at 1 ms vs 0.25 ms).
-BYTES_PER_SAMPLE = 40_000
+#: Peak memory per trajectory sample of the heaviest command that takes a trajectory, bytes,
+#: with a margin: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample
+#: (built-in ``paper`` path, 2,769 vs 8,867 and 21,529 samples) at 4.8-6.7 kB for ``compare``
+#: (six compensations, seven simulations) and at most 1.6 kB for the other commands.
+BYTES_PER_SAMPLE = 8_000
 #: Share of the physical memory the default sample limit may use.
 MEMORY_SHARE = 0.5
 
@@ -90,9 +90,9 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
     """
     for name, value in (("feed", feed), ("ts", ts)):
         if not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} must be positive and finite, got {value!r}", field=name)
+            raise InputError(f"{name} must be positive and finite, got {plain(value)!r}", field=name)
     if not (dwell >= 0 and np.isfinite(dwell)):
-        raise InputError(f"dwell must be a finite number >= 0, got {dwell!r}", field="dwell")
+        raise InputError(f"dwell must be a finite number >= 0, got {plain(dwell)!r}", field="dwell")
     limit = default_max_samples() if max_samples is None else int(max_samples)
     path = fit_toolpath(toolpath, l_eq=l_eq)
     estimate = estimate_samples(path.length, feed, ts, dwell)
