@@ -328,7 +328,8 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     if magic not in (b"PK\x03\x04", b"PK\x05\x06"):
         raise InputError("not a .npz file (not a zip archive)", source=source)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # our own handle: np.load leaks its file when the archive is damaged
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
             raw = {name: data[name] for name in data.files}
     except ValueError as exc:
         reason = ("it holds an object array (Python pickle), which is never loaded"
