@@ -164,6 +164,55 @@ def test_outputs_follow_the_umask_and_keep_an_existing_mode(work, capsys):
         os.umask(old)
 
 
+@pytest.fixture
+def short_traj(work, paper):
+    """The first 400 samples of the paper trajectory (with its reference): cheap to compare."""
+    _write_rows(work / "short.csv", {k: v[:400] for k, v in paper.items()})
+    return work / "short.csv"
+
+
+_CHEAP = [["trajectory", "--builtin", "circle", "-o", "out.csv"],
+          ["predict", "short.csv", "-o", "out.npz"],
+          ["compensate", "short.csv", "-o", "out.parquet"],
+          ["simulate", "short.csv", "--reference", "short.csv", "-o", "out.csv"]]
+_REPORTS = [["demo", "--paths", "circle", "--out", "report"],
+            ["compare", "short.csv", "--out", "report"]]
+
+
+@pytest.mark.parametrize("argv, failure", [(argv, failure) for argv in _CHEAP
+                                           for failure in ("ENOSPC", "SIGTERM")]
+                         + [(_REPORTS[0], "SIGTERM"), (_REPORTS[1], "ENOSPC")],
+                         ids=lambda value: value[0] if isinstance(value, list) else value)
+def test_every_command_failing_while_writing_leaves_inputs_and_no_temporary_file(
+        work, short_traj, capsys, monkeypatch, argv, failure):
+    import signal
+
+    import precontour.files as files
+    (work / "report").mkdir()
+    (work / "report" / "index.html").write_text("previous report")   # must survive as is
+
+    def fail(src, dst):
+        assert Path(src).exists() and Path(src).name.endswith(".tmp")
+        if failure == "SIGTERM":
+            os.kill(os.getpid(), signal.SIGTERM)
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "replace", fail)
+    before = digest(work)
+    code = main(argv)
+    err = capsys.readouterr().err
+    if failure == "SIGTERM":
+        assert code == 128 + signal.SIGTERM and "precontour: terminated" in err, err
+    else:
+        assert code == 2 and "cannot write: no space left on device" in err, err
+        assert len([line for line in err.splitlines() if "error" in line]) == 1, err
+    assert "Traceback" not in err
+    after = digest(work)
+    assert {k: v for k, v in after.items() if k in before} == before
+    assert not list(work.rglob("*.tmp")) and not list(work.rglob(".*.tmp"))
+    assert not (work / "out.csv").exists()
+
+
 # --------------------------------------------------------------------------------------------
 # 2., 4., 5., 6., 8., 9., 11., 12. bad content
 
@@ -222,8 +271,12 @@ def test_size_traps_are_refused_before_sampling(work, capsys, options, match):
 
 def test_far_away_cl_point_and_huge_gcode_coordinate(work, capsys):
     (work / "far.csv").write_text("Px,Py,Pz,Oi,Oj,Ok\n0,0,0,0,0,1\n1e7,0,0,0,0,1\n")
-    fails_cleanly(["trajectory", "far.csv", "-o", "t.csv"], r"far.csv.*at least 1e\+08 samples",
-                  work, capsys)
+    fails_cleanly(["trajectory", "far.csv", "-o", "t.csv"],
+                  r"far.csv, row 3, field 'Px': value 1e\+07 is out of range", work, capsys)
+    (work / "500m.csv").write_text("Px,Py,Pz,Oi,Oj,Ok\n0,0,0,0,0,1\n5e5,0,0,0,0,1\n")
+    fails_cleanly(["trajectory", "500m.csv", "-o", "t.csv", "--max-samples", "1000000"],
+                  r"500m.csv, field 'max_samples': the trajectory would have at least 5e\+06 "
+                  r"samples \(500000 mm of path", work, capsys)
     (work / "big.nc").write_text("G1 X0 Y0 Z0 A0 C0 F1000\nG1 X1000000000000\n")
     fails_cleanly(["trajectory", "big.nc", "-o", "t.csv"],
                   r"big.nc, row 2, field 'X': number out of range", work, capsys)
@@ -334,3 +387,127 @@ def test_machine_file_that_is_not_text(work, capsys):
     (work / "bin.toml").write_bytes(b"\xff\xfe\x00garbage")
     fails_cleanly(["predict", "paper.csv", "--machine", "bin.toml", "-o", "o.csv"],
                   r"bin.toml: not UTF-8 text", work, capsys)
+
+
+# --------------------------------------------------------------------------------------------
+# Fuzzing every reader: arbitrary and mutated bytes raise nothing but precontour's own errors
+# (and no Python warning).
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from precontour.errors import PrecontourError  # noqa: E402
+from precontour.machine.machine_file import load_machine  # noqa: E402
+from precontour.tables import read_trajectory  # noqa: E402
+from precontour.toolpath import read_toolpath  # noqa: E402
+
+MACHINE = load_machine("zhang2013")
+FUZZ = settings(max_examples=100, deadline=None,
+                suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                       HealthCheck.too_slow])
+
+_TRAJ_TEXT = ("t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok\n" + "".join(
+    f"{k * 1e-3!r},{-x!r},0.0,300.0,0.0,0.0,{x!r},0.0,-100.0,0.0,0.0,1.0\n"
+    for k, x in enumerate(np.linspace(0.0, 1.0, 8).tolist()))).encode()
+_CL_TEXT = b"Px,Py,Pz,Oi,Oj,Ok,F\n0,0,0,0,0,1,600\n5,1,0,0.1,0,0.995,600\n10,3,1,0,0.1,0.995,\n"
+_APT_TEXT = (b"PARTNO/TEST\nUNITS/MM\nFEDRAT/MMPM,600\nGOTO/0,0,10,0,0,1\n"
+             b"GOTO/10,0,10,0.1,0,0.99498744\nRAPID\nGOTO/20,5,10,0,0,1\nFINI\n")
+_GCODE_TEXT = (b"%\n(test)\nG21 G90 G94\nG0 X0 Y0 Z300 A0 C0\nG1 X10 Y5 F600\n"
+               b"G1 X20 A10 C45\nG4 P0.5\nG1 Z290 C90\nM30\n%\n")
+_TOML_TEXT = builtin_machine_text().encode()
+
+
+def _npz_bytes() -> bytes:
+    import io
+    buffer = io.BytesIO()
+    lines = _TRAJ_TEXT.decode().splitlines()
+    names = lines[0].split(",")
+    values = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    np.savez(buffer, **{name: values[:, i] for i, name in enumerate(names)})
+    return buffer.getvalue()
+
+
+def _parquet_bytes() -> bytes:
+    import io
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    buffer = io.BytesIO()
+    lines = _TRAJ_TEXT.decode().splitlines()
+    names = lines[0].split(",")
+    values = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    pq.write_table(pa.table({name: values[:, i] for i, name in enumerate(names)}), buffer)
+    return buffer.getvalue()
+
+
+@st.composite
+def mutated(draw, seed: bytes):
+    """``seed`` with a few bytes replaced, inserted or deleted, or cut short."""
+    data = bytearray(seed)
+    for _ in range(draw(st.integers(1, 6))):
+        kind = draw(st.sampled_from(["replace", "insert", "delete", "truncate"]))
+        at = draw(st.integers(0, max(len(data) - 1, 0)))
+        if kind == "replace" and data:
+            data[at] = draw(st.integers(0, 255))
+        elif kind == "insert":
+            data[at:at] = draw(st.sampled_from(
+                [b",", b"\n", b"-", b"e999", b"nan", b"1e308", b"\x00", b";", b"\"", b"=",
+                 b"[", b"G2", b"A400", b"9" * 40, b"\xef\xbb\xbf", b"\xff"]))
+        elif kind == "delete" and data:
+            del data[at:at + draw(st.integers(1, 8))]
+        else:
+            del data[at:]
+    return bytes(data)
+
+
+def _reads_cleanly(read, path: Path, data: bytes) -> None:
+    path.write_bytes(data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            read(path)
+        except PrecontourError:
+            pass
+
+
+READERS = {
+    "trajectory.csv": (lambda p: read_trajectory(p, kinematics=MACHINE.kinematics), _TRAJ_TEXT),
+    "trajectory.npz": (lambda p: read_trajectory(p, kinematics=MACHINE.kinematics),
+                       _npz_bytes()),
+    "trajectory.parquet": (lambda p: read_trajectory(p, kinematics=MACHINE.kinematics),
+                           _parquet_bytes()),
+    "machine.toml": (load_machine, _TOML_TEXT),
+    "program.nc": (lambda p: read_toolpath(p, machine=MACHINE), _GCODE_TEXT),
+    "program.apt": (read_toolpath, _APT_TEXT),
+    "program.csv": (read_toolpath, _CL_TEXT),
+}
+
+
+@pytest.mark.parametrize("name", sorted(READERS))
+def test_fuzz_arbitrary_bytes(tmp_path, name):
+    read, _ = READERS[name]
+
+    @FUZZ
+    @given(data=st.binary(max_size=3000))
+    def check(data):
+        _reads_cleanly(read, tmp_path / name, data)
+
+    check()
+
+
+@pytest.mark.parametrize("name", sorted(READERS))
+def test_fuzz_mutated_valid_files(tmp_path, name):
+    read, seed = READERS[name]
+    read(_write_seed(tmp_path / name, seed))   # the seed itself is valid
+
+    @FUZZ
+    @given(data=mutated(seed))
+    def check(data):
+        _reads_cleanly(read, tmp_path / name, data)
+
+    check()
+
+
+def _write_seed(path: Path, seed: bytes) -> Path:
+    path.write_bytes(seed)
+    return path

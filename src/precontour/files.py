@@ -41,7 +41,7 @@ from .errors import InputError, OutputError
 PathLike = str | os.PathLike
 
 __all__ = ["atomic_write", "check_input_file", "check_outputs", "check_report_folder",
-           "input_files", "is_same_file", "make_folder", "new_file_mode",
+           "input_files", "is_same_file", "make_folder", "new_file_mode", "refuse_non_text",
            "sigterm_as_exception", "Terminated"]
 
 
@@ -78,6 +78,19 @@ def check_input_file(path: PathLike, what: str = "file", error=InputError) -> Pa
     if not os.access(path, os.R_OK):
         raise error(f"cannot read {what}: permission denied", source=str(path))
     return path
+
+
+def refuse_non_text(data: bytes, source: str, error=InputError) -> None:
+    """Raise ``error`` when ``data`` (a file's bytes, or its first line) is no plain text:
+    gzip, zip (e.g. a spreadsheet), UTF-16, or other binary data (NUL bytes)."""
+    if data.startswith(b"\x1f\x8b"):
+        raise error("gzip-compressed, not a text file: decompress it first", source=source)
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise error("UTF-16 text: save it as UTF-8 (or ASCII)", source=source)
+    if data.startswith(b"PK\x03\x04"):
+        raise error("a zip archive (e.g. a spreadsheet), not a text file", source=source)
+    if b"\x00" in data:
+        raise error("binary data, not a text file", source=source)
 
 
 def input_files(*paths: PathLike | None) -> list[Path]:

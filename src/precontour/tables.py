@@ -23,7 +23,7 @@ import numpy as np
 
 from .machine.drives import AXES
 from .errors import InputError, OutputError, notice
-from .files import atomic_write, check_input_file, check_outputs
+from .files import atomic_write, check_input_file, check_outputs, refuse_non_text
 from .machine.kinematics import angle_between, normalize_orientations
 from .trajectory.sampled import MIN_SAMPLES, Trajectory, check_uniform_time
 
@@ -238,7 +238,7 @@ def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
             header_bytes = handle.readline(MAX_HEADER_BYTES + 1)
     except OSError as exc:
         raise InputError(f"cannot read file: {exc.strerror or exc}", source=source) from None
-    _check_text(header_bytes, source)
+    refuse_non_text(header_bytes, source)
     if len(header_bytes) > MAX_HEADER_BYTES and not header_bytes.endswith(b"\n"):
         raise InputError(f"no line break in the first {MAX_HEADER_BYTES} bytes: not a CSV "
                          "table with a header line", source=source)
@@ -272,20 +272,6 @@ def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     except (pa.ArrowException, ValueError) as exc:
         raise _csv_error(path, names, present, str(exc)) from None
     return {name: table.column(name).to_numpy() for name in present}
-
-
-def _check_text(start: bytes, source: str) -> None:
-    """Refuse files that are not text, by their first bytes."""
-    if start.startswith(b"\x1f\x8b"):
-        raise InputError("gzip-compressed, not a CSV text file: decompress it first",
-                         source=source)
-    if start.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise InputError("UTF-16 text: save it as UTF-8 (or ASCII) CSV", source=source)
-    if start.startswith(b"PK\x03\x04"):
-        raise InputError("a zip archive (e.g. a spreadsheet), not a CSV text file",
-                         source=source)
-    if b"\x00" in start:
-        raise InputError("binary data, not a CSV text file", source=source)
 
 
 def _csv_error(path: Path, names: list[str], present: list[str], message: str) -> InputError:
