@@ -248,14 +248,17 @@ def test_reference_off_the_kinematics_is_rejected_with_row_and_size(work, paper,
     shifted["Py"] = paper["Py"].copy()
     shifted["Py"][700:] += 10.0
     _write_rows(work / "off.csv", shifted)
-    for command in ("predict", "compensate"):
+    for command, tolerance in (("predict", "2"), ("compensate", "0.01"), ("simulate", "2")):
         fails_cleanly([command, "off.csv", "-o", "o.csv"],
                       r"off.csv, row 701, field 'Px': reference tool tip is 10 mm from the "
-                      r"direct kinematics .*tolerance 0.01 mm", work, capsys)
+                      rf"direct kinematics .*tolerance {tolerance} mm", work, capsys)
+    fails_cleanly(["simulate", "paper.csv", "--reference", "off.csv", "-o", "o.csv"],
+                  r"off.csv, row 701, .*tolerance 0.01 mm", work, capsys)
 
 
 def test_pre_compensated_commands_simulate_against_their_own_reference(work, capsys):
     assert main(["compensate", "paper.csv", "-o", "comp.csv"]) == 0
+    assert main(["predict", "comp.csv", "-o", "pred.csv"]) == 0
     assert main(["simulate", "comp.csv", "-o", "sim.csv"]) == 0
     assert "eps_tip" in (work / "sim.csv").read_text().splitlines()[0]
 

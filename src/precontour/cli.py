@@ -30,7 +30,7 @@ from .trajectory.feedplan import DEFAULT_FEED
 from .machine.machine_file import load_machine
 from .simulation.virtual_machine import simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
-from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
+from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference, read_trajectory,
                      trajectory_columns, write_columns)
 from .toolpath import read_toolpath
 from .prediction.tracking import predict_tracking
@@ -281,7 +281,9 @@ def run_predict(args: argparse.Namespace) -> int:
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     models = machine.controller(args.controller).error_models(machine.drives)
-    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
+    # commands (e.g. pre-compensated ones) are measured against their own reference columns
+    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics,
+                           tolerance=COMMAND_TOLERANCE)
     with _about(args.trajectory):
         prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
                                       tol_rotary=args.tol_rotary)
@@ -357,13 +359,15 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     machine.controller(args.controller)
-    commands = read_trajectory(args.commands, kinematics=machine.kinematics,
-                               tolerance=COMMAND_TOLERANCE)
+    commands = read_trajectory(args.commands)
     if args.mode == "discrete" and abs(commands.ts - machine.servo_period) > \
             1e-6 * machine.servo_period:
         raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s (discrete mode samples at the "
                          "servo period)", source=str(args.commands), field="t")
+    if commands.has_reference:
+        check_reference(commands, machine.kinematics, source=str(args.commands),
+                        tolerance=COMMAND_TOLERANCE)
     reference_traj = (read_trajectory(args.reference, kinematics=machine.kinematics)
                       if args.reference else commands)
     if args.reference and not np.array_equal(reference_traj.t, commands.t):

@@ -45,12 +45,12 @@ MAX_TIME = 1e7
 
 #: Largest distance (mm) between the reference tool tip ``Px,Py,Pz`` and the direct kinematics
 #: of the axes ``X..C`` of the same row, and largest angle (rad) between ``Oi,Oj,Ok`` and the
-#: axes' orientation, for a trajectory that is a reference (``predict``, ``compensate``,
-#: ``compare``, ``simulate --reference``): files written by ``precontour trajectory`` agree to
-#: round-off; a CAM post-processor's rounding to 1e-4 mm and 1e-4 rad stays far below.
+#: axes' orientation, for a trajectory that is a reference (``compensate``, ``compare``,
+#: ``simulate --reference``): files written by ``precontour trajectory`` agree to round-off; a
+#: CAM post-processor's rounding to 1e-4 mm and 1e-4 rad stays far below.
 REFERENCE_TOLERANCE = (0.01, 1e-3)
-#: The same for a command file measured against its own reference columns (``simulate``
-#: without ``--reference``): pre-compensated commands differ from their reference by the
+#: The same for a command file measured against its own reference columns (``predict``,
+#: ``simulate`` without ``--reference``): pre-compensated commands differ from their reference by the
 #: correction, which is of the size of the predicted errors (measured on the built-in paths,
 #: both methods, PID and P-PI: at most 0.33 mm and 6.9 mrad, with ``pid-low`` on ``fan``).
 COMMAND_TOLERANCE = (2.0, 0.05)

@@ -29,7 +29,7 @@ from ..errors import InputError, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
-from ..tables import read_trajectory
+from ..tables import check_reference, read_trajectory
 from ..trajectory.sampled import Trajectory
 from ..trajectory.generate import TrajectorySummary, generate_trajectory, summarize
 
@@ -568,7 +568,7 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
         traj, source = trajectory, "trajectory"
     else:
         source = str(trajectory)
-        traj = read_trajectory(trajectory, kinematics=machine.kinematics)
+        traj = read_trajectory(trajectory)
     if not traj.has_reference:
         raise InputError("the comparison needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour "
@@ -576,4 +576,6 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
     if abs(traj.ts - machine.servo_period) > 1e-6 * machine.servo_period:
         raise InputError(f"sample period {traj.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s", source=source, field="t")
+    if not isinstance(trajectory, Trajectory):
+        check_reference(traj, machine.kinematics, source=source)
     return traj, source
