@@ -78,7 +78,7 @@ def test_report_folder_checks(tmp_path):
     with pytest.raises(OutputError, match="refusing to overwrite an input file"):
         check_report_folder(tmp_path / "link", ["contour_errors.csv"], [traj])
     (tmp_path / "f").write_text("x")
-    with pytest.raises(OutputError, match="the report folder is a file"):
+    with pytest.raises(OutputError, match="the report output must be a directory, not a file"):
         check_report_folder(tmp_path / "f", ["index.html"])
     with pytest.raises(OutputError, match="'.*f' is a file, not a folder"):
         check_report_folder(tmp_path / "f" / "sub" / "deeper", ["index.html"])

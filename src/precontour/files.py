@@ -147,14 +147,16 @@ def check_outputs(outputs: Iterable[PathLike], inputs: Iterable[PathLike | None]
 
 
 def check_report_folder(folder: PathLike, names: Iterable[str],
-                        inputs: Iterable[PathLike | None] = ()) -> Path:
+                        inputs: Iterable[PathLike | None] = (), *, what: str = "report"
+                        ) -> Path:
     """Check a report folder before computing: it is a folder or can be created (no part of
     its path is a file), it is writable, and none of ``folder/name`` for ``names`` is an input
-    or an existing folder. Returns the folder as a Path."""
+    or an existing folder. ``what`` names the report in messages. Returns the folder."""
     folder = Path(folder)
     inputs = [Path(p) for p in inputs if p is not None]
     if folder.exists() and not folder.is_dir():
-        raise OutputError("the report folder is a file; give a folder", source=str(folder))
+        raise OutputError(f"the {what} output must be a directory, not a file",
+                          source=str(folder))
     _check_writable_folder(folder, str(folder), create=True)
     for name in names:
         path = folder / name
@@ -199,8 +201,8 @@ def make_folder(folder: PathLike) -> Path:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
-        raise OutputError("the report folder is a file; give a folder", source=str(folder)) \
-            from None
+        raise OutputError("the report output must be a directory, not a file",
+                          source=str(folder)) from None
     except OSError as exc:
         raise OutputError(f"cannot create folder: {_reason(exc)}", source=str(folder)) from None
     return folder

@@ -511,7 +511,8 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     out_dir = check_report_folder(
         out_dir, report_file_names(sliding, ppi, pids).values(),
         inputs=input_files(None if isinstance(trajectory, Trajectory) else trajectory,
-                           None if isinstance(machine_file, Machine) else machine_file))
+                           None if isinstance(machine_file, Machine) else machine_file),
+        what="comparison")
     traj, source = _load_source(builtin, trajectory, machine)
 
     linear = ((ppi,) if ppi else ()) + pids

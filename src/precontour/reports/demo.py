@@ -176,7 +176,8 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
               for name in controllers}
     out_dir = check_report_folder(
         out_dir, demo_file_names(paths, controllers).values(),
-        inputs=[] if isinstance(machine_file, Machine) else input_files(machine_file))
+        inputs=[] if isinstance(machine_file, Machine) else input_files(machine_file),
+        what="demo")
 
     runs_per_case = len(MACHINE_MODELS) * len(TRAJECTORY_KINDS)
     total = len(paths) * (1 + len(controllers) * (1 + runs_per_case)) + 1
