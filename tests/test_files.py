@@ -174,3 +174,14 @@ def test_atomic_write_read_only_folder(tmp_path):
             atomic_write(folder / "x.csv", b"x")
     finally:
         folder.chmod(0o755)
+
+
+def test_read_only_output_file_is_not_overwritten(tmp_path, monkeypatch):
+    target = tmp_path / "locked.csv"
+    target.write_text("keep")
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(target)
+                        else real_access(p, mode))
+    with pytest.raises(OutputError, match="locked.csv: is read-only; not overwritten"):
+        atomic_write(target, b"new")
+    assert target.read_text() == "keep" and leftovers(tmp_path) == []

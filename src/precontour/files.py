@@ -119,9 +119,9 @@ def check_outputs(outputs: Iterable[PathLike], inputs: Iterable[PathLike | None]
                   ) -> list[Path]:
     """Check output files before computing; return them as Paths.
 
-    Raises :class:`OutputError` when an output is an existing folder or other non-regular
-    file, its folder is missing, is not a folder or is not writable, or when it is one of
-    ``inputs`` (real path, device and inode) or another output.
+    Raises :class:`OutputError` when an output is an existing folder, other non-regular file
+    or read-only file, its folder is missing, is not a folder or is not writable, or when it
+    is one of ``inputs`` (real path, device and inode) or another output.
     """
     inputs = [Path(p) for p in inputs if p is not None]
     checked: list[Path] = []
@@ -136,6 +136,8 @@ def check_outputs(outputs: Iterable[PathLike], inputs: Iterable[PathLike | None]
                 raise OutputError("is an existing folder; give a file name", source=str(path))
             if not stat.S_ISREG(mode):
                 raise OutputError("is not a regular file; give a file name", source=str(path))
+            if not os.access(path, os.W_OK):
+                raise OutputError("is read-only; not overwritten", source=str(path))
         _check_writable_folder(path.parent if str(path.parent) else Path("."), str(path),
                                create=False)
         _refuse_inputs(path, inputs)

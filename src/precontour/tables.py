@@ -279,11 +279,11 @@ def _csv_error(path: Path, names: list[str], present: list[str], message: str) -
     import csv
 
     source = str(path)
+    row = 0
     try:
         with open(path, newline="", encoding="utf-8", errors="replace") as handle:
             reader = csv.reader(handle)
             next(reader, None)
-            row = 0
             for fields in reader:
                 if not fields or all(not f.strip() for f in fields):
                     continue
@@ -302,7 +302,7 @@ def _csv_error(path: Path, names: list[str], present: list[str], message: str) -
                         return InputError(f"not a number: {text[:40]!r}", source=source,
                                           row=row, field=name)
     except (csv.Error, OSError) as exc:
-        return InputError(f"cannot parse CSV: {exc}", source=source)
+        return InputError(f"cannot parse CSV: {exc}", source=source, row=row + 1)
     return InputError(f"cannot parse CSV: {message.splitlines()[0] if message else 'unknown'}",
                       source=source)
 
