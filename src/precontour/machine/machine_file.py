@@ -68,7 +68,7 @@ def load_machine(spec: str | Path) -> Machine:
         raise MachineFileError(f"cannot read machine file: {exc.strerror or exc}",
                                source=spec_str) from None
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise MachineFileError(f"not UTF-8 text (byte {exc.start}): a machine file is TOML",
                                source=spec_str) from None

@@ -103,7 +103,7 @@ def read_text(path: str | Path) -> str:
     """Read a text tool-path file. Numbers are ASCII; bytes that are not UTF-8 can only sit
     in comments, so they are replaced instead of failing the read. Compressed, UTF-16 and
     binary files are refused."""
-    return read_bytes(path).decode("utf-8", errors="replace")
+    return read_bytes(path).decode("utf-8-sig", errors="replace")
 
 
 def finish(P, O, feed, *, lines, source: str, format: str, empty: str, rapid=None,
