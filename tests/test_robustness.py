@@ -18,7 +18,7 @@ import pytest
 
 from precontour.cli import main
 from precontour.machine.machine_file import builtin_machine_text
-from precontour.tables import read_columns, write_columns
+from precontour.tables import read_columns
 
 FULL = ("t", "X", "Y", "Z", "A", "C", "Px", "Py", "Pz", "Oi", "Oj", "Ok")
 

@@ -191,9 +191,10 @@ class Controller:
         """Closed-loop error transfer functions of the five axes (stable, else an error)."""
         if not self.is_linear:
             linear = ", ".join(k for k, v in CONTROLLER_TYPES.items() if v.linear)
+            where = f"{self.source}: " if self.source else ""
             raise UnsupportedControllerError(
-                f"controller {self.name!r} (type {self.type!r}) is nonlinear; the closed-form "
-                f"predictor needs a linear controller (type {linear}); simulate this one with "
+                f"{where}controller {self.name!r} (type {self.type!r}) is nonlinear; the "
+                f"closed-form predictor needs a linear controller (type {linear}); simulate this one with "
                 "precontour.simulation.virtual_machine.simulate instead")
         models = tuple(ctrl.error_model(drive) for ctrl, drive in zip(self.axes, drives))
         for model in models:
