@@ -31,7 +31,8 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
 
 
 def quiet(func, *args, **kwargs):
-    """Call a reader whose 7-digit orientations trigger the normalization warning."""
+    """Call a reader, ignoring Python warnings (its 7-digit orientations are normalized with a
+    notice through logging, not a warning)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         return func(*args, **kwargs)
