@@ -95,7 +95,7 @@ def _rows(n=10):
     (lambda p: _write_csv(p, HEADER, _rows()[:6] + [["0.0065", "1", "2", "3", "0.5", "0.1"]] + _rows()[7:]),
      r"traj\.csv, row 7, field 't': time is not uniformly sampled"),
     (lambda p: _write_csv(p, HEADER, _rows(3)),
-     r"traj\.csv, field 't': too few samples: 3, need at least 4"),
+     r"traj\.csv, field 't': too few samples: 3, need at least 6"),
     (lambda p: p.write_text("") and p or p, r"traj\.csv: empty file"),
 ])
 def test_predict_bad_trajectory_files(tmp_path, capsys, make, pattern):

@@ -2,13 +2,18 @@
 
 Each command reads files, calls the pipeline stages and writes files; no numerics live here.
 User errors (bad files, values, names) print one line ``precontour: error: ...`` and exit 2.
+Every command checks its output locations (:mod:`precontour.files`) before computing, and
+passes its input files (trajectory, reference, machine file, program) as ``inputs`` so that no
+output can overwrite one. Notices print as ``precontour: note: ...``.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -19,15 +24,18 @@ from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
                            compensate)
 from .prediction.contour import ReferencePath, contour_errors
-from .errors import InputError, PrecontourError
+from .errors import NOTICES, InputError, PrecontourError
+from .files import Terminated, input_files, sigterm_as_exception
 from .trajectory.feedplan import DEFAULT_FEED
 from .machine.machine_file import load_machine
 from .simulation.virtual_machine import simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
-from .tables import read_trajectory, trajectory_columns, write_columns
+from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference, read_trajectory,
+                     trajectory_columns, write_columns)
 from .toolpath import read_program, read_toolpath, toolpath_format
 from .prediction.tracking import predict_tracking
-from .trajectory.generate import DEFAULT_DWELL, generate_trajectory, summarize
+from .trajectory.generate import (DEFAULT_DWELL, default_max_samples, generate_trajectory,
+                                  summarize)
 from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
 
 EXIT_USAGE = 2
@@ -39,14 +47,49 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE
+    notices = logging.StreamHandler(sys.stderr)
+    notices.setFormatter(logging.Formatter("precontour: note: %(message)s"))
+    NOTICES.addHandler(notices)
+    propagate, NOTICES.propagate = NOTICES.propagate, False
     try:
-        return args.run(args)
+        with sigterm_as_exception():
+            return args.run(args)
     except PrecontourError as exc:
-        print(f"precontour: error: {exc}", file=sys.stderr)
+        print(f"precontour: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
+    except MemoryError:
+        print("precontour: error: out of memory (the input is too large for this machine)",
+              file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:  # e.g. an input that vanished or turned unreadable while read
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"precontour: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except Terminated as exc:
+        print("precontour: terminated", file=sys.stderr)
+        return int(exc.code)
     except KeyboardInterrupt:  # pragma: no cover - interactive
         print("precontour: interrupted", file=sys.stderr)
         return 130
+    finally:
+        NOTICES.removeHandler(notices)
+        NOTICES.propagate = propagate
+
+
+def _one_line(exc: Exception) -> str:
+    return " ".join(str(exc).split("\n"))
+
+
+@contextmanager
+def _about(path):
+    """Name ``path`` in an input error raised by a computation on its values."""
+    try:
+        yield
+    except InputError as exc:
+        located = exc.located(str(path))
+        if located is exc:
+            raise
+        raise located from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -107,6 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
                             help="G-code: the whole program is in tool centre point mode (X Y Z "
                                  "the tool tip, A C the rotary axes), for controllers that "
                                  "switch it with their own M code (LinuxCNC M428)")
+    trajectory.add_argument("--max-samples", type=_positive_int, default=None, metavar="N",
+                            help="refuse a trajectory of more samples, estimated before any "
+                                 "is made (default: sized to this machine's memory, "
+                                 f"{default_max_samples()} here)")
     trajectory.add_argument("-o", "--output", type=Path, required=True,
                             help="output file (.csv/.npz/.parquet): "
                                  "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -246,11 +293,16 @@ def _positive_int(text: str) -> int:
 
 def run_predict(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    inputs = input_files(args.trajectory, args.machine)
+    check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     models = machine.controller(args.controller).error_models(machine.drives)
-    traj = read_trajectory(args.trajectory)
-    prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
-                                  tol_rotary=args.tol_rotary)
+    # commands (e.g. pre-compensated ones) are measured against their own reference columns
+    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics,
+                           tolerance=COMMAND_TOLERANCE)
+    with _about(args.trajectory):
+        prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
+                                      tol_rotary=args.tol_rotary)
     e = prediction(traj.t)
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
@@ -259,7 +311,7 @@ def run_predict(args: argparse.Namespace) -> int:
         contour = contour_errors(ReferencePath.from_trajectory(traj), traj.q - e,
                                  machine.kinematics)
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
-    write_columns(args.output, columns, inputs=[args.trajectory])
+    write_columns(args.output, columns, inputs=inputs)
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
@@ -272,6 +324,8 @@ def run_predict(args: argparse.Namespace) -> int:
 
 def run_trajectory(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    inputs = input_files(args.toolpath, args.machine)
+    check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     ts = machine.servo_period if args.ts is None else args.ts
     if args.builtin:
@@ -281,7 +335,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
         for notice in program.notices:
             print(f"precontour: {notice}", file=sys.stderr)
         traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
-                                  tolerance=args.corner_tol)
+                                  tolerance=args.corner_tol,
+                                  max_samples=args.max_samples or default_max_samples())
         print(f"program {args.toolpath}: {program.n_moves} move(s) ({int(program.rapid.sum())} "
               f"rapid), {len(program.stops)} stop(s), {len(program.passthrough)} pass-through "
               f"line(s){', tool centre point mode' if program.tcp else ''}")
@@ -292,8 +347,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
                              "tip already)", source=str(args.toolpath), field="--tcp")
         toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units)
     if toolpath is not None:
-        traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell)
-    inputs = [] if args.builtin else [args.toolpath]
+        traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
+                                   max_samples=args.max_samples)
     write_columns(args.output, trajectory_columns(traj), inputs=inputs)
     print(summarize(traj, machine).format())
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
@@ -302,9 +357,11 @@ def run_trajectory(args: argparse.Namespace) -> int:
 
 def run_compensate(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    inputs = input_files(args.trajectory, args.machine)
+    check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     models = machine.controller(args.controller).error_models(machine.drives)
-    traj = read_trajectory(args.trajectory)
+    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
     if not traj.has_reference:
         raise InputError("compensation needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour trajectory')",
@@ -314,10 +371,11 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    result = compensate(traj, machine.kinematics, models, method=args.method,
-                        iterations=args.iterations, tol_linear=args.tol_linear,
-                        tol_rotary=args.tol_rotary, progress=progress)
-    write_columns(args.output, trajectory_columns(result.trajectory), inputs=[args.trajectory])
+    with _about(args.trajectory):
+        result = compensate(traj, machine.kinematics, models, method=args.method,
+                            iterations=args.iterations, tol_linear=args.tol_linear,
+                            tol_rotary=args.tol_rotary, progress=progress)
+    write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
     print("predicted before: " + _contour_line(result.before))
@@ -328,15 +386,28 @@ def run_compensate(args: argparse.Namespace) -> int:
 
 def run_simulate(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    inputs = input_files(args.commands, args.reference, args.machine)
+    check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
+    machine.controller(args.controller)
     commands = read_trajectory(args.commands)
-    reference_traj = read_trajectory(args.reference) if args.reference else commands
+    if args.mode == "discrete" and abs(commands.ts - machine.servo_period) > \
+            1e-6 * machine.servo_period:
+        raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
+                         f"period {machine.servo_period:.9g} s (discrete mode samples at the "
+                         "servo period)", source=str(args.commands), field="t")
+    if commands.has_reference:
+        check_reference(commands, machine.kinematics, source=str(args.commands),
+                        tolerance=COMMAND_TOLERANCE)
+    reference_traj = (read_trajectory(args.reference, kinematics=machine.kinematics)
+                      if args.reference else commands)
     if args.reference and not np.array_equal(reference_traj.t, commands.t):
         raise InputError("reference and command files must have the same time stamps",
                          source=str(args.reference), field="t")
-    result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
-                      friction=args.friction == "on", ff_friction=args.ff_friction == "on",
-                      inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
+    with _about(args.commands):
+        result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
+                          friction=args.friction == "on", ff_friction=args.ff_friction == "on",
+                          inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
     columns = {"t": result.t}
     columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
     contour = None
@@ -344,7 +415,6 @@ def run_simulate(args: argparse.Namespace) -> int:
         contour = contour_errors(ReferencePath.from_trajectory(reference_traj), result.q_act,
                                  machine.kinematics)
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
-    inputs = [args.commands] + ([args.reference] if args.reference else [])
     write_columns(args.output, columns, inputs=inputs)
     print(f"simulated {commands.n_samples} samples on {machine.name}, controller "
           f"{args.controller}, {args.mode}, friction {args.friction}, feed-forward friction "

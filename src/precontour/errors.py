@@ -7,6 +7,26 @@ the file, the row and the field where the problem is.
 
 from __future__ import annotations
 
+import logging
+
+#: Where one-line notices go (a normalization, an unwrap): the command line prints them as
+#: ``precontour: note: ...``; a library user gets them through :mod:`logging`.
+NOTICES = logging.getLogger("precontour")
+
+
+def plain(value):
+    """``value`` as a plain Python object, so that messages show ``0.5``, not
+    ``np.float64(0.5)`` (numpy scalars and 0-d arrays become Python numbers and strings)."""
+    item = getattr(value, "item", None)
+    if item is not None and getattr(value, "ndim", None) == 0:
+        return item()
+    return value
+
+
+def notice(message: str) -> None:
+    """Tell the user, in one line, about something that was fixed up on the way in."""
+    NOTICES.warning(message)
+
 
 class PrecontourError(Exception):
     """Root of all precontour errors."""
@@ -33,18 +53,40 @@ class InputError(PrecontourError, ValueError):
 
     def __init__(self, message: str, *, source: str | None = None,
                  row: int | None = None, field: str | None = None):
+        self.message = message
         self.source = source
         self.row = row
         self.field = field
-        where = []
-        if source is not None:
-            where.append(str(source))
-        if row is not None:
-            where.append(f"{self.ROW_NAME} {row}")
-        if field is not None:
-            where.append(f"{self.FIELD_NAME} {field!r}")
-        prefix = ": ".join([", ".join(where)]) + ": " if where else ""
-        super().__init__(prefix + message)
+        super().__init__(_located(message, source, row, field, self.ROW_NAME,
+                                  self.FIELD_NAME))
+
+    def located(self, source: str) -> "InputError":
+        """The same error naming ``source`` if it names no file yet (for callers that know
+        which file the values came from)."""
+        if self.source is not None or type(self) is not InputError:
+            return self
+        return InputError(self.message, source=source, row=self.row, field=self.field)
+
+
+def _located(message: str, source, row, field, row_name: str = "row",
+             field_name: str = "field") -> str:
+    where = []
+    if source is not None:
+        where.append(str(source))
+    if row is not None:
+        where.append(f"{row_name} {row}")
+    if field is not None:
+        where.append(f"{field_name} {field!r}")
+    return (", ".join(where) + ": " if where else "") + message
+
+
+class OutputError(InputError):
+    """An output cannot go where it was asked to: an input would be overwritten, the folder is
+    missing, read-only or a file, the disk is full. The message names the output. (An output
+    location is user input too, so this is an :class:`InputError`.)"""
+
+    def __init__(self, message: str, *, source: str | None = None):
+        super().__init__(message, source=source)
 
 
 class MachineFileError(InputError):

@@ -1,23 +1,31 @@
 """Column files in and out: CSV (pyarrow's C++ reader and writer), ``.npz`` and ``.parquet``.
 
-Readers check every value (finite, required columns present) and name the file, the 1-based
-data row (the header is not counted) and the column of the first bad value. Writers write to a
-temporary file beside the target and rename it, and refuse to overwrite an input.
+Readers check every value (finite, required columns present, numeric, names unique) and name
+the file, the 1-based data row (the header is not counted) and the column of the first bad
+value; a file that is not what its suffix says (binary, gzip or UTF-16 text named ``.csv``, a
+text file named ``.npz``) is called that. Writers go through :func:`precontour.files.atomic_write`
+(temporary file, rename, never an input).
+
+Trajectory files are checked further (:func:`read_trajectory`): at least
+:data:`~precontour.trajectory.sampled.MIN_SAMPLES` uniformly spaced samples, coordinates within
+:data:`MAX_LINEAR` / :data:`MAX_ROTARY`, C free of 2 pi wraps (unwrapped, with a notice) and, when
+a machine's kinematics is given, the reference ``Px..Ok`` within a tolerance of the axes'
+direct kinematics (:data:`REFERENCE_TOLERANCE`).
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
+import zipfile
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
 from .machine.drives import AXES
-from .errors import InputError
-from .machine.kinematics import normalize_orientations
-from .trajectory.sampled import Trajectory, check_uniform_time
+from .errors import InputError, OutputError, notice
+from .files import atomic_write, check_input_file, check_outputs, refuse_non_text
+from .machine.kinematics import angle_between, normalize_orientations
+from .trajectory.sampled import MIN_SAMPLES, Trajectory, check_uniform_time
 
 #: Axis columns are named X,Y,Z,A,C on every machine (a public format); on a B-C machine
 #: column A holds the B axis (slot 3 of q).
@@ -26,6 +34,30 @@ REFERENCE_COLUMNS: tuple[str, ...] = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")
 #: Optional column: source line of the NC-program block executing at each sample.
 LINE_COLUMN = "line"
 SUPPORTED_SUFFIXES: tuple[str, ...] = (".csv", ".npz", ".parquet")
+
+#: Longest CSV header line read, in bytes: a file without a line break within it is refused
+#: before it is loaded whole (a 50 MB one-line file would otherwise take gigabytes).
+MAX_HEADER_BYTES = 1 << 20
+
+#: Largest |X|, |Y|, |Z|, |Px|, |Py|, |Pz| accepted in a trajectory file, mm (1 km: larger
+#: numbers are no machine coordinates, and would overflow the spline fit's arithmetic).
+MAX_LINEAR = 1e6
+#: Largest |A|, |C| accepted in a trajectory file, rad (about 160,000 turns).
+MAX_ROTARY = 1e6
+#: Largest |t| accepted in a trajectory file, s (about four months).
+MAX_TIME = 1e7
+
+#: Largest distance (mm) between the reference tool tip ``Px,Py,Pz`` and the direct kinematics
+#: of the axes ``X..C`` of the same row, and largest angle (rad) between ``Oi,Oj,Ok`` and the
+#: axes' orientation, for a trajectory that is a reference (``compensate``, ``compare``,
+#: ``simulate --reference``): files written by ``precontour trajectory`` agree to round-off; a
+#: CAM post-processor's rounding to 1e-4 mm and 1e-4 rad stays far below.
+REFERENCE_TOLERANCE = (0.01, 1e-3)
+#: The same for a command file measured against its own reference columns (``predict``,
+#: ``simulate`` without ``--reference``): pre-compensated commands differ from their reference by the
+#: correction, which is of the size of the predicted errors (measured on the built-in paths,
+#: both methods, PID and P-PI: at most 0.33 mm and 6.9 mrad, with ``pid-low`` on ``fan``).
+COMMAND_TOLERANCE = (2.0, 0.05)
 
 
 def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[str] = ()
@@ -38,27 +70,18 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
     path = Path(path)
     source = str(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise InputError("is a folder, not a file", source=source)
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"unsupported file type {suffix or '(none)'!r}; use one of "
                          f"{', '.join(SUPPORTED_SUFFIXES)}", source=source)
-    if not path.is_file():
-        raise InputError("no such file", source=source)
+    check_input_file(path)
     if suffix == ".csv":
         raw = _read_csv(path, list(required) + list(optional))
     elif suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                raw = {name: data[name] for name in data.files}
-        except (OSError, ValueError) as exc:
-            raise InputError(f"cannot read .npz file: {exc}", source=source) from None
+        raw = _read_npz(path)
     else:
-        import pyarrow.parquet as pq
-        try:
-            table = pq.read_table(path)
-        except Exception as exc:  # pyarrow raises its own exception types
-            raise InputError(f"cannot read parquet file: {exc}", source=source) from None
-        raw = {name: table.column(name).to_numpy(zero_copy_only=False)
-               for name in table.column_names}
+        raw = _read_parquet(path)
 
     missing = [name for name in required if name not in raw]
     if missing:
@@ -66,17 +89,14 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
                          f"{', '.join(raw) or 'no columns'}", source=source, field=missing[0])
     columns: dict[str, np.ndarray] = {}
     for name in list(required) + [c for c in optional if c in raw]:
-        try:
-            values = np.asarray(raw[name], dtype=float)
-        except (TypeError, ValueError):
-            values = _coerce_with_row(raw[name], source, name)
+        values = _as_floats(raw[name], source, name)
         if values.ndim != 1:
             raise InputError(f"column must be 1-D, got shape {values.shape}", source=source,
                              field=name)
         bad = ~np.isfinite(values)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            raise InputError(f"value is not finite ({values[row]})", source=source,
+            raise InputError(f"value is not finite ({float(values[row])})", source=source,
                              row=row + 1, field=name)
         columns[name] = values
     lengths = {len(v) for v in columns.values()}
@@ -85,13 +105,22 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
     return columns
 
 
-def read_trajectory(path: str | Path, *, min_samples: int = 4) -> Trajectory:
+def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinematics=None,
+                    tolerance: tuple[float, float] = REFERENCE_TOLERANCE) -> Trajectory:
     """Read a trajectory file with columns ``t,X,Y,Z,A,C`` (s, mm, rad) and, if all present,
     the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional program ``line`` (whole numbers).
-    Time must be uniformly sampled."""
+
+    Time must be uniformly sampled, with at least ``min_samples`` samples; values within
+    :data:`MAX_TIME`, :data:`MAX_LINEAR`, :data:`MAX_ROTARY`. A step of C by a multiple of
+    2 pi between two samples (a post-processor's wrap into one turn) is unwrapped, with one
+    notice. With ``kinematics``, the reference must agree with the axes' direct kinematics
+    within ``tolerance`` = (mm, rad) on every row (see :data:`REFERENCE_TOLERANCE`).
+    """
     source = str(path)
     columns = read_columns(path, TRAJECTORY_COLUMNS, REFERENCE_COLUMNS + (LINE_COLUMN,))
+    _check_magnitudes(columns, source)
     check_uniform_time(columns["t"], source=source, min_samples=min_samples)
+    columns["C"] = _unwrap_c(columns["C"], source)
     q = np.stack([columns[axis] for axis in AXES], axis=1)
     P = O = None
     if all(name in columns for name in REFERENCE_COLUMNS):
@@ -107,7 +136,57 @@ def read_trajectory(path: str | Path, *, min_samples: int = 4) -> Trajectory:
             raise InputError(f"line number is not a whole number ({float(values[row])!r})",
                              source=source, row=row + 1, field=LINE_COLUMN)
         line = values.astype(np.int64)
-    return Trajectory(t=columns["t"], q=q, P=P, O=O, line=line)
+    traj = Trajectory(t=columns["t"], q=q, P=P, O=O, line=line)
+    if kinematics is not None and traj.has_reference:
+        check_reference(traj, kinematics, source=source, tolerance=tolerance)
+    return traj
+
+
+def check_reference(traj: Trajectory, kinematics, *, source: str | None = None,
+                    tolerance: tuple[float, float] = REFERENCE_TOLERANCE) -> None:
+    """Raise :class:`InputError` naming the first row where the reference tool tip or
+    orientation is farther than ``tolerance`` = (mm, rad) from the direct kinematics of the
+    axes on that row, with the size of the difference."""
+    P, O = kinematics.forward(traj.q)
+    tip = np.linalg.norm(P - traj.P, axis=1)
+    angle = angle_between(O, traj.O)
+    for values, limit, field, unit, what in ((tip, tolerance[0], "Px", "mm", "tool tip"),
+                                             (angle, tolerance[1], "Oi", "rad", "orientation")):
+        off = ~(values <= limit)
+        if off.any():
+            row = int(np.flatnonzero(off)[0])
+            raise InputError(
+                f"reference {what} is {float(values[row]):.6g} {unit} from the direct "
+                f"kinematics of X..C on this row (largest {float(values.max()):.6g} {unit}; "
+                f"tolerance {limit:g} {unit}): the reference columns do not belong to these "
+                "axes", source=source, row=row + 1, field=field)
+
+
+def _check_magnitudes(columns: Mapping[str, np.ndarray], source: str) -> None:
+    for name, values in columns.items():
+        if name == LINE_COLUMN:
+            continue  # source line numbers: checked as whole numbers below
+        limit = (MAX_TIME if name == "t" else MAX_ROTARY if name in ("A", "C")
+                 else MAX_LINEAR)
+        big = np.abs(values) > limit
+        if big.any():
+            row = int(np.flatnonzero(big)[0])
+            raise InputError(f"value {float(values[row]):g} is out of range (|value| <= "
+                             f"{limit:g})", source=source, row=row + 1, field=name)
+
+
+def _unwrap_c(c: np.ndarray, source: str) -> np.ndarray:
+    """C with steps of more than pi between samples removed by whole turns (np.unwrap), and
+    one notice naming the first such row; no real motion turns C by pi in one servo period."""
+    jumps = np.abs(np.diff(c)) > np.pi
+    if not jumps.any():
+        return c
+    rows = np.flatnonzero(jumps)
+    step = float(c[rows[0] + 1] - c[rows[0]])
+    more = f" and {rows.size - 1} more" if rows.size > 1 else ""
+    notice(f"{source}, row {rows[0] + 2}, field 'C': C steps by {step:.6g} rad from the row "
+           f"before{more}; unwrapped by whole turns (2 pi) to keep C continuous")
+    return np.unwrap(c)
 
 
 def trajectory_columns(traj: Trajectory) -> dict[str, np.ndarray]:
@@ -131,39 +210,39 @@ def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
     result was computed from: writing over one of them is refused.
     """
     path = Path(path)
+    check_output_table(path, inputs)
+    names = list(columns)
+    arrays = [np.ascontiguousarray(columns[name], dtype=float) for name in names]
     suffix = path.suffix.lower()
+
+    def write(handle):
+        if suffix == ".npz":
+            np.savez(handle, **dict(zip(names, arrays)))
+            return
+        import pyarrow as pa
+        table = pa.table(dict(zip(names, arrays)))
+        if suffix == ".csv":
+            import pyarrow.csv as pacsv
+            handle.write((",".join(names) + "\n").encode())
+            pacsv.write_csv(table, handle, write_options=pacsv.WriteOptions(include_header=False))
+        else:
+            import pyarrow.parquet as pq
+            pq.write_table(table, handle)
+
+    return atomic_write(path, write, inputs=inputs)
+
+
+def check_output_table(path: str | Path, inputs: Iterable[str | Path] = ()) -> Path:
+    """Check, before computing, that ``path`` is a table file :func:`write_columns` can write
+    (a supported suffix) at a place :func:`precontour.files.check_outputs` allows."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        raise OutputError("is an existing folder; give a file name", source=str(path))
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "
                          f"{', '.join(SUPPORTED_SUFFIXES)}", source=str(path))
-    for source in inputs:
-        if _same_file(path, Path(source)):
-            raise InputError("refusing to overwrite an input file; choose another -o",
-                             source=str(path))
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError("output directory does not exist", source=str(path))
-    names = list(columns)
-    arrays = [np.ascontiguousarray(columns[name], dtype=float) for name in names]
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            if suffix == ".npz":
-                np.savez(handle, **dict(zip(names, arrays)))
-            else:
-                import pyarrow as pa
-                table = pa.table(dict(zip(names, arrays)))
-                if suffix == ".csv":
-                    import pyarrow.csv as pacsv
-                    handle.write((",".join(names) + "\n").encode())
-                    pacsv.write_csv(table, handle,
-                                    write_options=pacsv.WriteOptions(include_header=False))
-                else:
-                    import pyarrow.parquet as pq
-                    pq.write_table(table, handle)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    check_outputs([path], inputs)
     return path
 
 
@@ -174,12 +253,32 @@ def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     source = str(path)
     try:
         with open(path, "rb") as handle:
-            header = handle.readline().decode("utf-8", "replace")
+            header_bytes = handle.readline(MAX_HEADER_BYTES + 1)
     except OSError as exc:
-        raise InputError(f"cannot read file: {exc}", source=source) from None
+        raise InputError(f"cannot read file: {exc.strerror or exc}", source=source) from None
+    refuse_non_text(header_bytes, source)
+    if len(header_bytes) > MAX_HEADER_BYTES and not header_bytes.endswith(b"\n"):
+        raise InputError(f"no line break in the first {MAX_HEADER_BYTES} bytes: not a CSV "
+                         "table with a header line", source=source)
+    try:
+        header = header_bytes.decode("utf-8").removeprefix("\ufeff")
+    except UnicodeDecodeError:
+        raise InputError("the header line is not UTF-8 text (binary data?)",
+                         source=source) from None
     if not header.strip():
         raise InputError("empty file (no header line)", source=source)
-    names = [name.strip().strip('"') for name in header.strip().split(",")]
+    names = [name.strip().strip('"').strip() for name in header.strip().split(",")]
+    if len(names) == 1:
+        for separator, label in ((";", "';'"), ("\t", "tabs")):
+            if separator in names[0]:
+                raise InputError(f"fields are separated by {label}: use comma separators",
+                                 source=source)
+    seen = set()
+    for name in names:
+        if name in seen and name:
+            raise InputError("column name appears twice in the header", source=source,
+                             field=name)
+        seen.add(name)
     present = [name for name in wanted if name in names]
     convert = pacsv.ConvertOptions(include_columns=present,
                                    column_types={name: pa.float64() for name in present})
@@ -188,7 +287,7 @@ def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     try:
         table = pacsv.read_csv(path, read_options=read, parse_options=parse,
                                convert_options=convert)
-    except pa.ArrowInvalid as exc:
+    except (pa.ArrowException, ValueError) as exc:
         raise _csv_error(path, names, present, str(exc)) from None
     return {name: table.column(name).to_numpy() for name in present}
 
@@ -198,40 +297,116 @@ def _csv_error(path: Path, names: list[str], present: list[str], message: str) -
     import csv
 
     source = str(path)
-    with open(path, newline="") as handle:
-        reader = csv.reader(handle)
-        next(reader, None)
-        row = 0
-        for fields in reader:
-            if not fields or all(not f.strip() for f in fields):
-                continue
-            row += 1
-            if len(fields) != len(names):
-                return InputError(f"expected {len(names)} fields, found {len(fields)}",
-                                  source=source, row=row)
-            for name in present:
-                text = fields[names.index(name)].strip()
-                try:
-                    float(text)
-                except ValueError:
-                    return InputError(f"not a number: {text!r}", source=source, row=row,
-                                      field=name)
-    return InputError(f"cannot parse CSV: {message.splitlines()[0]}", source=source)
+    row = 0
+    try:
+        with open(path, newline="", encoding="utf-8", errors="replace") as handle:
+            reader = csv.reader(handle)
+            next(reader, None)
+            for fields in reader:
+                if not fields or all(not f.strip() for f in fields):
+                    continue
+                row += 1
+                if "\x00" in "".join(fields):
+                    return InputError("binary data, not a CSV text file", source=source,
+                                      row=row)
+                if len(fields) != len(names):
+                    return InputError(f"expected {len(names)} fields, found {len(fields)}",
+                                      source=source, row=row)
+                for name in present:
+                    text = fields[names.index(name)].strip()
+                    try:
+                        float(text)
+                    except ValueError:
+                        return InputError(f"not a number: {text[:40]!r}", source=source,
+                                          row=row, field=name)
+    except (csv.Error, OSError) as exc:
+        return InputError(f"cannot parse CSV: {exc}", source=source, row=row + 1)
+    return InputError(f"cannot parse CSV: {message.splitlines()[0] if message else 'unknown'}",
+                      source=source)
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    source = str(path)
+    with open(path, "rb") as handle:
+        magic = handle.read(4)
+    if magic not in (b"PK\x03\x04", b"PK\x05\x06"):
+        raise InputError("not a .npz file (not a zip archive)", source=source)
+    try:
+        # our own handle: np.load leaks its file when the archive is damaged
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
+            raw = {name: data[name] for name in data.files}
+    except ValueError as exc:
+        reason = ("it holds an object array (Python pickle), which is never loaded"
+                  if "pickle" in str(exc) else str(exc).splitlines()[0] if str(exc) else
+                  "bad array data")
+        raise InputError(f"cannot read .npz file: {reason}", source=source) from None
+    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, KeyError,
+            NotImplementedError, RuntimeError, TypeError, IndexError, OverflowError,
+            MemoryError) as exc:
+        # a truncated or damaged archive: zipfile, zlib and numpy's header parser each
+        # raise their own types
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read .npz file (truncated or damaged?): {reason}",
+                         source=source) from None
+    except Exception as exc:  # zlib.error and other codec errors of damaged members
+        raise InputError(f"cannot read .npz file (truncated or damaged?): "
+                         f"{type(exc).__name__}", source=source) from None
+    return raw
+
+
+def _read_parquet(path: Path) -> dict[str, np.ndarray]:
+    import pyarrow.parquet as pq
+
+    source = str(path)
+    try:
+        names = pq.read_schema(path).names
+        for k, name in enumerate(names):
+            if name in names[:k]:
+                raise InputError("column name appears twice", source=source, field=name)
+        table = pq.read_table(path)
+    except InputError:
+        raise
+    except Exception as exc:  # pyarrow raises its own exception types
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read parquet file: {reason}", source=source) from None
+    raw = {}
+    for name in names:
+        try:
+            raw[name] = table.column(name).to_numpy(zero_copy_only=False)
+        except Exception:  # nested or other types numpy cannot hold
+            raw[name] = np.asarray(table.column(name).to_pylist(), dtype=object)
+    return raw
+
+
+def _as_floats(values, source: str, name: str) -> np.ndarray:
+    """``values`` as a float array, or an error naming the first value that is no number."""
+    dtype = getattr(values, "dtype", None)
+    if dtype is not None and dtype.kind == "c":
+        raise InputError("complex numbers; a column must hold real numbers", source=source,
+                         field=name)
+    if dtype is not None and dtype.kind in "fiub":
+        return np.asarray(values, dtype=float)
+    if dtype is not None and dtype.kind in "mMV":
+        raise InputError(f"column holds {dtype} values, not numbers", source=source,
+                         field=name)
+    try:
+        with np.errstate(all="ignore"):
+            return np.asarray(values, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        return _coerce_with_row(values, source, name)
 
 
 def _coerce_with_row(values, source: str, name: str) -> np.ndarray:
+    values = np.asarray(values, dtype=object).reshape(-1)
     out = np.empty(len(values))
     for row, value in enumerate(values):
         try:
             out[row] = float(value)
-        except (TypeError, ValueError):
-            raise InputError(f"not a number: {value!r}", source=source, row=row + 1,
+        except (TypeError, ValueError, OverflowError):
+            if isinstance(value, np.generic):
+                value = value.item()
+            text = repr(value)
+            text = text if len(text) <= 40 else text[:37] + "..."
+            raise InputError(f"not a number: {text}", source=source, row=row + 1,
                              field=name) from None
     return out
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.exists() and b.exists() and os.path.samefile(a, b)
-    except OSError:
-        return False

@@ -154,3 +154,11 @@ def test_fit_axes_uses_axis_tolerances():
 def test_bad_input(t, x, pattern):
     with pytest.raises(InputError, match=pattern):
         fit_min_jerk(t, x, 1e-3, name="X")
+
+
+def test_tolerance_below_round_off_is_an_input_error_not_a_hang():
+    t = np.arange(200) * 1e-3
+    x = 50.0 + np.sin(7 * t) * 3.0
+    with pytest.raises(InputError, match=r"field 'X': the spline fit cannot get within the "
+                                         r"tolerance 1e-30: .* use a larger tolerance"):
+        fit_min_jerk(t, x, 1e-30, name="X")

@@ -193,6 +193,7 @@ class Controller:
     name: str
     type: str
     axes: tuple
+    source: str = ""
 
     @property
     def is_linear(self) -> bool:
@@ -202,13 +203,19 @@ class Controller:
         """Closed-loop error transfer functions of the five axes (stable, else an error)."""
         if not self.is_linear:
             linear = ", ".join(k for k, v in CONTROLLER_TYPES.items() if v.linear)
+            where = f"{self.source}: " if self.source else ""
             raise UnsupportedControllerError(
-                f"controller {self.name!r} (type {self.type!r}) is nonlinear; the closed-form "
-                f"predictor needs a linear controller (type {linear}); simulate this one with "
+                f"{where}controller {self.name!r} (type {self.type!r}) is nonlinear; the "
+                f"closed-form predictor needs a linear controller (type {linear}); simulate this one with "
                 "precontour.simulation.virtual_machine.simulate instead")
         models = tuple(ctrl.error_model(drive) for ctrl, drive in zip(self.axes, drives))
         for model in models:
-            model.check_stable()
+            try:
+                model.check_stable()
+            except UnsupportedControllerError as exc:
+                where = f"{self.source}: " if self.source else ""
+                raise UnsupportedControllerError(
+                    f"{where}[controllers.{self.name}] {exc}: check its gains") from None
         return models
 
 
@@ -224,7 +231,7 @@ class _PerAxisParser:
         kind = table.get_str("type")
         axes = tuple(self.gains_cls.from_table(table.get_table(axis)) for axis in axis_names)
         table.finish()
-        return Controller(name=name, type=kind, axes=axes)
+        return Controller(name=name, type=kind, axes=axes, source=table.source)
 
 
 CONTROLLER_TYPES: dict[str, Callable[..., Controller]] = {

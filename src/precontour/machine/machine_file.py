@@ -24,6 +24,7 @@ from ._config import ConfigTable
 from .controllers import CONTROLLER_TYPES, Controller
 from .drives import AXES, Drive, Friction
 from ..errors import MachineFileError
+from ..files import check_input_file
 from .kinematics import KINEMATICS_TYPES
 
 #: Built-in machines: the paper's, and LinuxCNC's two trunnion-table simulator configurations
@@ -70,14 +71,21 @@ def load_machine(spec: str | Path) -> Machine:
         return parse_machine(builtin_machine_text(spec_str),
                              source=f"<built-in machine {spec_str}>")
     path = Path(spec_str)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise MachineFileError(
             f"no such machine file, and not a built-in machine ({', '.join(BUILTIN_MACHINES)})",
             source=spec_str)
+    check_input_file(path, "machine file", error=MachineFileError)
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MachineFileError(f"cannot read machine file: {exc}", source=spec_str) from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise MachineFileError(f"cannot read machine file: {exc.strerror or exc}",
+                               source=spec_str) from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise MachineFileError(f"not UTF-8 text (byte {exc.start}): a machine file is TOML",
+                               source=spec_str) from None
     return parse_machine(text, source=spec_str)
 
 

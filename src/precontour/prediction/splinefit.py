@@ -133,9 +133,19 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         outside = np.abs(deviation) > tol
         if not outside.any():
             break
-        knots = np.union1d(knots, _worst_of_each_stretch(np.abs(deviation), outside))
-    else:  # pragma: no cover - every round adds a knot, so this needs > N rounds
-        raise RuntimeError(f"{name}: spline fit did not converge in {max_rounds} rounds")
+        new = np.union1d(knots, _worst_of_each_stretch(np.abs(deviation), outside))
+        if new.size == knots.size:
+            # the worst samples are knots already: what is left is round-off of the values
+            worst = int(np.argmax(np.abs(deviation)))
+            raise InputError(
+                f"the spline fit cannot get within the tolerance {tol:.3g}: "
+                f"{float(np.abs(deviation[worst])):.3g} remains at sample {worst + 1}, a knot "
+                f"already (round-off of values up to {float(np.abs(x).max()):.3g}); use a "
+                "larger tolerance", field=name)
+        knots = new
+    else:
+        raise InputError(f"the spline fit did not get within the tolerance {tol:.3g} in "
+                         f"{max_rounds} rounds; use a larger tolerance", field=name)
     spline = _to_ppoly(coef, t[knots])
     return SplineFit(spline=spline, knot_index=knots,
                      max_deviation=float(np.abs(deviation).max()), tolerance=float(tol),

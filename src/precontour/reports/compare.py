@@ -25,10 +25,11 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from .demo import MACHINE_MODELS
 from .progress import Progress, StepCounter
 from ..machine.drives import AXES, ROTARY_AXES
-from ..errors import InputError
+from ..errors import InputError, plain
+from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
-from ..tables import read_trajectory
+from ..tables import check_reference, read_trajectory
 from ..trajectory.sampled import Trajectory
 from ..trajectory.generate import TrajectorySummary, generate_trajectory, summarize
 
@@ -429,6 +430,28 @@ def make_claims(result: CompareResult) -> tuple[Claim, ...]:
 # Orchestration
 # --------------------------------------------------------------------------------------------
 
+def report_file_names(sliding: str | None, ppi: str | None, pids: Sequence[str]
+                      ) -> dict[str, str]:
+    """Names of the files the comparison's report writes, keyed by role (figures ``fig11``
+    ... ``fig16``, possibly one per controller as ``fig12:<name>``; tables; ``compare.md``;
+    ``index.html`` last), for the given controllers."""
+    names = {}
+    if sliding and ppi:
+        names["fig11"] = "fig11_contour_sliding_mode_vs_ppi.png"
+    for name in pids:
+        names[f"fig12:{name}"] = f"fig12_contour_tracking_vs_contour_{name}.png"
+        names[f"fig13:{name}"] = f"fig13_compensation_spectra_{name}.png"
+    if ppi:
+        names["fig14"] = f"fig14_axis_errors_{ppi}.png"
+        names["fig15"] = f"fig15_contour_{ppi}.png"
+    if ppi or pids:
+        names["fig16"] = "fig16_x_command_derivatives.png"
+    names.update({"contour.csv": "contour_errors.csv", "spectra.csv": "compensation_spectra.csv",
+                  "peaks.csv": "command_peaks.csv", "claims.csv": "claims.csv",
+                  "compare.md": "compare.md", "index.html": "index.html"})
+    return names
+
+
 def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
                 trajectory: str | Path | Trajectory | None = None,
                 machine: str | Path | Machine = "zhang2013", iterations: int = 1,
@@ -469,7 +492,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     pids = tuple(pids)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
             or iterations < 1:
-        raise InputError(f"iterations must be a whole number >= 1, got {iterations!r}",
+        raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     names = ((sliding,) if sliding else ()) + ((ppi,) if ppi else ()) + pids
     if not names:
@@ -477,6 +500,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     if len(set(names)) != len(names):
         raise InputError(f"a controller is named twice: {', '.join(names)}",
                          field="controllers")
+    machine_file = machine
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
     controllers = {name: machine.controller(name) for name in names}
@@ -484,11 +508,12 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
         if not controllers[name].is_linear:
             raise InputError(f"controller {name!r} is not linear: it cannot be "
                              "pre-compensated", field="controllers")
+    out_dir = check_report_folder(
+        out_dir, report_file_names(sliding, ppi, pids).values(),
+        inputs=input_files(None if isinstance(trajectory, Trajectory) else trajectory,
+                           None if isinstance(machine_file, Machine) else machine_file),
+        what="comparison")
     traj, source = _load_source(builtin, trajectory, machine)
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError("the comparison output must be a directory, not a file",
-                         source=str(out_dir))
 
     linear = ((ppi,) if ppi else ()) + pids
     total = (1 if sliding else 0) + 5 * len(linear) + 1
@@ -552,4 +577,6 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
     if abs(traj.ts - machine.servo_period) > 1e-6 * machine.servo_period:
         raise InputError(f"sample period {traj.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s", source=source, field="t")
+    if not isinstance(trajectory, Trajectory):
+        check_reference(traj, machine.kinematics, source=source)
     return traj, source

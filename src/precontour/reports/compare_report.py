@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from .compare import (COMPENSATIONS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
+from .compare import (report_file_names, COMPENSATIONS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
                       SPECTRUM_CUTOFF_HZ, SPECTRUM_SIGNALS, WELCH_SEGMENT, Spectrum,
                       CompareResult, command_derivatives, compute_compare)
 from ..prediction.contour import ContourErrors
@@ -27,6 +27,7 @@ from ..machine.drives import AXES, ROTARY_AXES
 from .demo_report import _axis_scale, _data_uri, _figure, _write, figure_png
 
 from .progress import Progress
+from ..files import make_folder
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..machine.machine_file import Machine
@@ -290,21 +291,7 @@ def compare_file_names(result: "CompareResult") -> dict[str, str]:
     """Names of the files the report writes, keyed by role (figures ``fig11`` ... ``fig16``,
     possibly one per controller as ``fig12:<name>``; tables; ``compare.md``; ``index.html``
     last)."""
-    names = {}
-    if result.sliding and result.ppi:
-        names["fig11"] = "fig11_contour_sliding_mode_vs_ppi.png"
-    for name in result.pids:
-        names[f"fig12:{name}"] = f"fig12_contour_tracking_vs_contour_{name}.png"
-        names[f"fig13:{name}"] = f"fig13_compensation_spectra_{name}.png"
-    if result.ppi:
-        names["fig14"] = f"fig14_axis_errors_{result.ppi}.png"
-        names["fig15"] = f"fig15_contour_{result.ppi}.png"
-    if result.linear:
-        names["fig16"] = "fig16_x_command_derivatives.png"
-    names.update({"contour.csv": "contour_errors.csv", "spectra.csv": "compensation_spectra.csv",
-                  "peaks.csv": "command_peaks.csv", "claims.csv": "claims.csv",
-                  "compare.md": "compare.md", "index.html": "index.html"})
-    return names
+    return report_file_names(result.sliding, result.ppi, result.pids)
 
 
 def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
@@ -453,8 +440,7 @@ def write_compare_report(result: "CompareResult") -> list[Path]:
     """Write the comparison's folder: one PNG per figure, the tables as CSV, ``compare.md``
     (claims and tables) and ``index.html`` with everything embedded. Overwrites only these
     files; returns their paths, ``index.html`` last."""
-    out = Path(result.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(result.out_dir)
     names = compare_file_names(result)
     figures = _figures(result)
     written = [_write(out / names[role], png) for role, _, png in figures]

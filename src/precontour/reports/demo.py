@@ -25,7 +25,8 @@ from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
-from ..errors import InputError
+from ..errors import InputError, plain
+from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
 from ..machine.controllers import closed_loop_bandwidth
@@ -125,6 +126,20 @@ class DemoResult:
         raise KeyError((path, controller))
 
 
+def demo_file_names(paths, controllers) -> dict[str, str]:
+    """Names of the files a demo writes, keyed by role: ``table.csv``, ``table.md``,
+    ``path:<p>``, ``tracking:<p>:<c>``, ``contour:<p>:<c>`` and ``index.html``."""
+    controllers = tuple(controllers)
+    names = {"table.csv": "contour_errors.csv", "table.md": "contour_errors.md"}
+    for p in paths:
+        names[f"path:{p}"] = f"path_{p}.png"
+        for c in controllers:
+            names[f"contour:{p}:{c}"] = f"contour_{p}_{c}.png"
+            names[f"tracking:{p}:{c}"] = f"tracking_{p}_{c}.png"
+    names["index.html"] = "index.html"
+    return names
+
+
 def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
              controllers: tuple[str, ...] = ("pid-high", "pid-low"), iterations: int = 1,
              machine: str | Path | Machine = "zhang2013",
@@ -154,14 +169,15 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
         The result (without report files) and the step counter, one step left for the report.
     """
     paths, controllers = _check_names(paths, controllers, iterations)
+    machine_file = machine
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
     models = {name: machine.controller(name).error_models(machine.drives)
               for name in controllers}
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError("the demo output must be a directory, not a file",
-                         source=str(out_dir))
+    out_dir = check_report_folder(
+        out_dir, demo_file_names(paths, controllers).values(),
+        inputs=[] if isinstance(machine_file, Machine) else input_files(machine_file),
+        what="demo")
 
     runs_per_case = len(MACHINE_MODELS) * len(TRAJECTORY_KINDS)
     total = len(paths) * (1 + len(controllers) * (1 + runs_per_case)) + 1
@@ -219,6 +235,6 @@ def _check_names(paths, controllers, iterations) -> tuple[tuple[str, ...], tuple
                          field="controllers")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
             or iterations < 1:
-        raise InputError(f"iterations must be a whole number >= 1, got {iterations!r}",
+        raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     return paths, controllers

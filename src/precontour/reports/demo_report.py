@@ -15,11 +15,10 @@ import base64
 import csv
 import html
 import io
-import os
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -29,8 +28,9 @@ from matplotlib.ticker import MaxNLocator
 from ..prediction.contour import ContourErrors
 from ..machine.drives import AXES, ROTARY_AXES
 
+from ..files import atomic_write, make_folder
 from ..machine.machine_file import Machine
-from .demo import MACHINE_MODELS, DemoResult, compute_demo
+from .demo import MACHINE_MODELS, DemoResult, compute_demo, demo_file_names
 from .progress import Progress
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -370,20 +370,6 @@ def save_png(fig: Figure, file: str | Path) -> Path:
 # The demo folder
 # --------------------------------------------------------------------------------------------
 
-def demo_file_names(paths: Iterable[str], controllers: Iterable[str]) -> dict[str, str]:
-    """Names of the files a demo writes, keyed by role: ``table.csv``, ``table.md``,
-    ``path:<p>``, ``tracking:<p>:<c>``, ``contour:<p>:<c>`` and ``index.html``."""
-    controllers = tuple(controllers)
-    names = {"table.csv": "contour_errors.csv", "table.md": "contour_errors.md"}
-    for p in paths:
-        names[f"path:{p}"] = f"path_{p}.png"
-        for c in controllers:
-            names[f"contour:{p}:{c}"] = f"contour_{p}_{c}.png"
-            names[f"tracking:{p}:{c}"] = f"tracking_{p}_{c}.png"
-    names["index.html"] = "index.html"
-    return names
-
-
 def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = None) -> list[Path]:
     """Write the report folder of a demo: one PNG per figure, the table as CSV and Markdown,
     and ``index.html`` with everything embedded. Overwrites only these files.
@@ -391,8 +377,7 @@ def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = Non
     Returns the paths written, ``index.html`` last.
     """
     rows = table_rows(result) if rows is None else rows
-    out = Path(result.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(result.out_dir)
     names = demo_file_names(result.paths, result.controllers)
     written = [write_table_csv(rows, out / names["table.csv"]),
                write_table_markdown(rows, out / names["table.md"])]
@@ -515,11 +500,7 @@ def _demo_html(result: "DemoResult", rows, sections) -> str:
 
 def _write(file: str | Path, data: bytes) -> Path:
     """Write bytes through a temporary file and a rename, so a reader never sees half."""
-    file = Path(file)
-    tmp = file.with_name(f".{file.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, file)
-    return file
+    return atomic_write(file, data)
 
 
 def run_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),

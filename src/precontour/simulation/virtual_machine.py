@@ -34,7 +34,7 @@ from .control_laws import (LAWS, N_DISCRETE_STATES, LawParameters, continuous_de
                            continuous_output, discrete_step, law_reset)
 from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
-from ..errors import InputError, UnsupportedControllerError
+from ..errors import InputError, UnsupportedControllerError, plain
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
@@ -265,7 +265,7 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
     if substeps is None:
         substeps = DEFAULT_SUBSTEPS[mode]
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
-        raise InputError(f"substeps must be an integer >= 1, got {substeps!r}", field="substeps")
+        raise InputError(f"substeps must be an integer >= 1, got {plain(substeps)!r}", field="substeps")
     substeps = int(substeps)
 
     plant = _Plant.from_drives(machine.drives, inertia_scale, damping_scale)
@@ -316,11 +316,11 @@ def _check_commands(q, n: int) -> np.ndarray:
 
 def _check_scale(value, name: str, *, positive: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InputError(f"must be a number, got {value!r}", field=name)
+        raise InputError(f"must be a number, got {plain(value)!r}", field=name)
     value = float(value)
     ok = math.isfinite(value) and (value > 0 if positive else value >= 0)
     if not ok:
-        raise InputError(f"must be finite and {'> 0' if positive else '>= 0'}, got {value!r}",
+        raise InputError(f"must be finite and {'> 0' if positive else '>= 0'}, got {plain(value)!r}",
                          field=name)
     return value
 
@@ -340,7 +340,7 @@ def _check_resolution(resolution, mode: str) -> np.ndarray | None:
     bad = ~(np.isfinite(res) & (res > 0))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"axis {AXES[i]}: must be finite and > 0, got {res[i]!r}",
+        raise InputError(f"axis {AXES[i]}: must be finite and > 0, got {plain(res[i])!r}",
                          field="encoder_resolution")
     return res
 

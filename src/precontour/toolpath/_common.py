@@ -16,6 +16,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InputError, ToolPathError
+from ..files import check_input_file, refuse_non_text
 from ..machine.kinematics import UNIT_TOLERANCE, normalize_orientations
 from . import ToolPath
 
@@ -25,6 +26,9 @@ FEED_UNITS: Mapping[str, float] = MappingProxyType({"mm/min": 1.0 / 60.0, "mm/s"
 
 #: mm per inch (exact by definition).
 INCH = 25.4
+
+#: Largest |Px|, |Py|, |Pz| read, mm (1 km): beyond any machine's travel.
+MAX_COORDINATE = 1e6
 
 #: |O| below which an orientation is called zero-length rather than non-unit.
 ZERO_LENGTH = 1e-9
@@ -83,20 +87,23 @@ def feed_factor(feed_units: str) -> float:
 
 
 def read_bytes(path: str | Path) -> bytes:
-    """Read a tool-path file, turning OS errors into :class:`ToolPathError`."""
+    """Read a tool-path file, turning OS errors into :class:`ToolPathError` (a folder or a
+    FIFO is called that)."""
+    check_input_file(path, "tool-path file", error=ToolPathError)
     try:
-        return Path(path).read_bytes()
-    except FileNotFoundError:
-        raise ToolPathError("no such tool-path file", source=str(path)) from None
+        data = Path(path).read_bytes()
     except OSError as exc:
         raise ToolPathError(f"cannot read tool-path file: {exc.strerror or exc}",
                             source=str(path)) from None
+    refuse_non_text(data, str(path), error=ToolPathError)
+    return data
 
 
 def read_text(path: str | Path) -> str:
     """Read a text tool-path file. Numbers are ASCII; bytes that are not UTF-8 can only sit
-    in comments, so they are replaced instead of failing the read."""
-    return read_bytes(path).decode("utf-8", errors="replace")
+    in comments, so they are replaced instead of failing the read. Compressed, UTF-16 and
+    binary files are refused."""
+    return read_bytes(path).decode("utf-8-sig", errors="replace")
 
 
 def finish(P, O, feed, *, lines, source: str, format: str, empty: str, rapid=None,
@@ -142,8 +149,14 @@ def finish(P, O, feed, *, lines, source: str, format: str, empty: str, rapid=Non
     bad = ~np.isfinite(PO)
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise ToolPathError(f"value is not finite ({PO[r, c]!r})", source=source,
+        raise ToolPathError(f"value is not finite ({float(PO[r, c])})", source=source,
                             row=int(lines[r]), field=_FIELDS[c])
+    big = np.abs(PO) > np.array([MAX_COORDINATE] * 3 + [2.0] * 3)
+    if big.any():
+        r, c = np.argwhere(big)[0]
+        what = "no machine coordinate" if c < 3 else "no unit vector component"
+        raise ToolPathError(f"value {float(PO[r, c]):g} is out of range ({what})",
+                            source=source, row=int(lines[r]), field=_FIELDS[c])
     bad_feed = (feed <= 0.0) | np.isinf(feed)
     if bad_feed.any():
         r = int(np.flatnonzero(bad_feed)[0])

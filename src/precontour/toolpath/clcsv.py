@@ -20,6 +20,8 @@ from ..errors import ToolPathError
 from ._common import ReadReport, feed_factor, finish, read_bytes
 
 REQUIRED_COLUMNS = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")
+#: Longest stretch searched for the header row, in bytes.
+MAX_HEADER_BYTES = 1 << 20
 FEED_COLUMN = "F"
 
 __all__ = ["read_clcsv", "read_clcsv_report", "REQUIRED_COLUMNS", "FEED_COLUMN"]
@@ -54,13 +56,18 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
     point, duplicates dropped).
 
     Consecutive duplicate rows (same P and O) are dropped and counted in
-    ``report.n_duplicates``. Orientations within 1e-6 of unit length are normalized with a
-    warning; others, zero-length ones and a turn of more than 90 degrees between consecutive
+    ``report.n_duplicates``. Orientations within
+    :data:`~precontour.machine.kinematics.UNIT_TOLERANCE` of unit length are normalized with
+    one notice; others, zero-length ones and a turn of more than 90 degrees between consecutive
     rows are errors naming the file line (header = line 1).
     """
     source = str(path)
     factor = feed_factor(feed_units)
     data = read_bytes(path)
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:  # pyarrow would fail decoding a bad row's text for messages
+        data = data.decode("utf-8", errors="replace").encode("utf-8")
     header_line, header = _header(data, source)
     columns = _map_columns(header, source, header_line)
     wanted = [columns[c] for c in REQUIRED_COLUMNS]
@@ -71,7 +78,7 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
     invalid: list[str] = []
 
     def on_invalid(row):
-        invalid.append(row.text)
+        invalid.append(row.number)  # not row.text: it may not be UTF-8
         return "skip"
 
     try:
@@ -110,11 +117,22 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
 
 def _header(data: bytes, source: str) -> tuple[int, list[str]]:
     """1-based line number and fields of the header (the first non-empty line)."""
-    text = data.decode("utf-8-sig", errors="replace")
+    # a header is short: look no further than MAX_HEADER_BYTES for it
+    text = data[:MAX_HEADER_BYTES].decode("utf-8-sig", errors="replace")
     for number, line in enumerate(io.StringIO(text), start=1):
         if line.strip("\r\n"):
-            return number, next(csv.reader([line]))
+            if len(line) >= MAX_HEADER_BYTES // 4 and not line.endswith("\n"):
+                raise ToolPathError(f"no line break in the first {MAX_HEADER_BYTES} bytes: "
+                                    "not a CSV table with a header row", source=source)
+            return number, _fields(line, source, number)
     raise ToolPathError("empty file (no header row)", source=source)
+
+
+def _fields(line: str, source: str, number: int) -> list[str]:
+    try:
+        return next(csv.reader([line]))
+    except csv.Error as exc:
+        raise ToolPathError(f"malformed CSV line: {exc}", source=source, row=number) from None
 
 
 def _map_columns(header: list[str], source: str, header_line: int) -> dict[str, str]:
@@ -163,7 +181,7 @@ def _is_null(column) -> np.ndarray:
     return np.asarray(column.is_null().to_numpy(zero_copy_only=False), dtype=bool)
 
 
-def _rows(data: bytes, header: list[str]):
+def _rows(data: bytes, header: list[str], source: str):
     """(line number, fields) of every non-empty data line: slow path, for messages only."""
     text = data.decode("utf-8-sig", errors="replace")
     seen_header = False
@@ -173,11 +191,11 @@ def _rows(data: bytes, header: list[str]):
         if not seen_header:
             seen_header = True
             continue
-        yield number, next(csv.reader([line]))
+        yield number, _fields(line, source, number)
 
 
 def _raise_bad_row(data: bytes, header: list[str], source: str):
-    for number, fields in _rows(data, header):
+    for number, fields in _rows(data, header, source):
         if len(fields) != len(header):
             raise ToolPathError(f"expected {len(header)} columns as in the header, got "
                                 f"{len(fields)}", source=source, row=number)
@@ -186,7 +204,7 @@ def _raise_bad_row(data: bytes, header: list[str], source: str):
 
 def _raise_bad_number(data: bytes, header: list[str], wanted: list[str], source: str):
     index = {name: header.index(name) for name in wanted}
-    for number, fields in _rows(data, header):
+    for number, fields in _rows(data, header, source):
         if len(fields) != len(header):
             raise ToolPathError(f"expected {len(header)} columns as in the header, got "
                                 f"{len(fields)}", source=source, row=number)

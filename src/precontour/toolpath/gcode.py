@@ -50,6 +50,10 @@ ARC_CHORD_TOLERANCE = 1e-3
 ARC_RADIUS_TOLERANCE = 5e-3
 #: ... or as a fraction of the radius, whichever is larger (LinuxCNC's rule).
 ARC_RADIUS_RTOL = 1e-3
+#: Largest |coordinate| of a linear axis or tool tip, mm (1 km: no machine's travel), and of a
+#: rotary axis, degrees (about 2,800 turns): beyond it a number is a typo or garbage, refused
+#: by line before it overflows the kinematics or the trajectory's sample count.
+MAX_COORDINATE = 1e6
 #: Largest number of chords one arc may be cut into (memory guard against absurd arcs).
 MAX_ARC_CHORDS = 1_000_000
 
@@ -240,7 +244,7 @@ class _Reader:
             target = prog + np.cumsum(np.where(given, words, 0.0), axis=0)
         else:
             target = np.column_stack([_ffill(words[:, i], prog[i]) for i in range(5)])
-        if not (np.abs(target) < 1e9).all():
+        if not (np.abs(target) <= MAX_COORDINATE).all():
             return False
         moving = given.any(axis=1)
         feed_rows = motion == 1.0
@@ -527,7 +531,7 @@ class _Reader:
                         self.fail(f"incremental (G91) move of axis {letter} before its "
                                   "position is known", spelled[letter])
                     value += target[i]
-                if not abs(value) < 1e9:
+                if not abs(value) <= MAX_COORDINATE:
                     self.fail(f"coordinate {spelled[letter]!r} is out of range", spelled[letter])
                 target[i] = value
         rapid = self.motion == 0
@@ -694,6 +698,18 @@ class _Reader:
         self.add_many(points, False, duration, feed, self.row)
 
     # ------------------------------------------------------------------ result
+    def check_tilt(self, tilt: np.ndarray, lines: np.ndarray) -> None:
+        """The tilt axis (A, or B on a B-C machine) stays within its travel."""
+        low, high = _tilt_travel(self.kinematics)
+        slack = 1e-9
+        out = (tilt < low - slack) | (tilt > high + slack)
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            letter = self.axes[3]
+            raise ProgramError(f"{letter} = {math.degrees(tilt[k]):.6g} deg is outside the tilt "
+                               f"axis's travel [{math.degrees(low):g}, {math.degrees(high):g}] "
+                               "deg", source=self.source, row=int(lines[k]), field=letter)
+
     def finish(self) -> Program:
         if self.start is None or not self.n_moves:
             raise ProgramError("no motion: no move after a block that sets all axes "
@@ -708,6 +724,7 @@ class _Reader:
             k = int(np.flatnonzero(bad)[0]) if bad.any() else 0
             raise ProgramError("the kinematics gives no machine axes for this tool tip",
                                source=self.source, row=int(lines[k]))
+        self.check_tilt(q[:, 3], lines)
         return Program(start=start, start_line=self.start_line, q=q,
                        rapid=rapid, duration=duration, feed=feed, line=lines, tcp_move=tcp,
                        stops=tuple(self.stops), passthrough=tuple(self.passthrough),
@@ -715,6 +732,13 @@ class _Reader:
                        axes=self.axes, notices=tuple(self.notices),
                        skipped=MappingProxyType(dict(self.skipped)),
                        path_tolerance=tolerance)
+
+
+def _tilt_travel(kinematics) -> tuple[float, float]:
+    """The tilt axis's travel (rad): the machine's limits if it has them, within +-180 deg."""
+    low, high = getattr(kinematics, "tilt_limits", (None, None))
+    return (-math.pi if low is None else max(low, -math.pi),
+            math.pi if high is None else min(high, math.pi))
 
 
 def _ffill(values: np.ndarray, initial: float) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, plain
 from ..toolpath import ToolPath
 
 #: Names accepted by :func:`builtin_path`.
@@ -57,7 +57,7 @@ def circle_path(n_points: int = 400, *, radius: float = 50.0, tilt: float = 0.5,
         A = tilt + tilt_amplitude sin(2 phi),  C = phi     (rad; defaults 0.5 and 0.25)
     """
     if not radius > 0:
-        raise InputError(f"radius must be > 0 mm, got {radius!r}", field="radius")
+        raise InputError(f"radius must be > 0 mm, got {plain(radius)!r}", field="radius")
     u = np.linspace(0.0, 1.0, n_points)
     phi = 2 * np.pi * u
     P = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.zeros_like(phi)], axis=-1)
@@ -85,9 +85,9 @@ def cone_path(n_points: int = 400, *, diameter: float = 80.0, half_angle: float 
     (5 and 25 deg by default), and C turns a full revolution.
     """
     if not diameter > 0:
-        raise InputError(f"diameter must be > 0 mm, got {diameter!r}", field="diameter")
+        raise InputError(f"diameter must be > 0 mm, got {plain(diameter)!r}", field="diameter")
     if not 0 < half_angle < 90:
-        raise InputError(f"half_angle must be in (0, 90) deg, got {half_angle!r}",
+        raise InputError(f"half_angle must be in (0, 90) deg, got {plain(half_angle)!r}",
                          field="half_angle")
     if abs(half_angle - tilt) < 2.0:
         raise InputError(f"|half_angle - tilt| must be >= 2 deg (the tool would pass "
@@ -117,7 +117,7 @@ def fan_path(n_points: int = 300, *, length: float = 80.0, fan_angle: float = 0.
     twice: the A-C trunnion keeps C fixed and swings A through zero (A < 0 on the far side).
     """
     if not length > 0:
-        raise InputError(f"length must be > 0 mm, got {length!r}", field="length")
+        raise InputError(f"length must be > 0 mm, got {plain(length)!r}", field="length")
     u = np.linspace(0.0, 1.0, n_points)
     beta = fan_angle * np.sin(2 * np.pi * u)
     P = np.stack([length * (u - 0.5), 8.0 * np.sin(np.pi * u), np.zeros_like(u)], axis=-1)

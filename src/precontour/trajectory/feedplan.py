@@ -37,7 +37,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from ..machine.drives import AXES
-from ..errors import PrecontourError, ToolPathError
+from ..errors import PrecontourError, ToolPathError, plain
 
 #: Default maximum tool tip feed, mm/s (the paper's test path).
 DEFAULT_FEED = 100.0
@@ -155,14 +155,14 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     for name, value in (("feed", feed), ("acceleration", acceleration), ("jerk", jerk),
                         ("ts", ts)):
         if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be positive and finite, got {value!r}")
+            raise ValueError(f"{name} must be positive and finite, got {plain(value)!r}")
     v_ax, a_ax, j_ax = axis_limits(machine)
     lim = _Limits(feed, acceleration, jerk, v_ax, a_ax, j_ax)
     L = path.length
     if grid_step is None:
         grid_step = min(feed * ts / 2.0, L / 2000.0)
     elif not (np.isfinite(grid_step) and grid_step > 0):
-        raise ValueError(f"grid_step must be positive and finite, got {grid_step!r}")
+        raise ValueError(f"grid_step must be positive and finite, got {plain(grid_step)!r}")
     n_grid = int(np.ceil(L / grid_step)) + 1
     s_grid = np.linspace(0.0, L, n_grid)
     h = s_grid[1] - s_grid[0]

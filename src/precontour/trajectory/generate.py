@@ -8,10 +8,12 @@ plus :func:`summarize`, the numbers the command line prints about a trajectory.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError, plain
 from ..machine.drives import AXES
 from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
                        plan_feed)
@@ -22,10 +24,37 @@ from .sampled import Trajectory
 #: Default time (s) the final command is held so that the drives settle inside the trajectory.
 DEFAULT_DWELL = 0.2
 
+#: Peak memory per trajectory sample of the commands a machinist's program goes through
+#: (trajectory, predict, compensate, simulate, run), bytes, with a margin:
+#: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample (built-in ``paper``
+#: path, 2,769 vs 8,867 and 21,529 samples) at most 1.6 kB for those, and 4.8-6.7 kB for the
+#: research command ``compare`` (six compensations, seven simulations), which is not sized
+#: for hour-long programs.
+BYTES_PER_SAMPLE = 2_000
+#: Share of the physical memory the default sample limit may use.
+MEMORY_SHARE = 0.5
+
+
+def default_max_samples() -> int:
+    """The default largest number of trajectory samples: :data:`MEMORY_SHARE` of this
+    machine's physical memory at :data:`BYTES_PER_SAMPLE` (1 GiB assumed if unknown)."""
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        memory = 1 << 30
+    return max(100_000, int(MEMORY_SHARE * memory / BYTES_PER_SAMPLE))
+
+
+def estimate_samples(length: float, feed: float, ts: float, dwell: float) -> float:
+    """Fewest samples a trajectory can have: the combined path length ``length`` (mm) at no
+    more than ``feed`` (mm/s), sampled every ``ts`` s, plus the final ``dwell`` (s)."""
+    return length / (feed * ts) + dwell / ts + 1.0
+
 
 def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
                         acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
-                        l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL) -> Trajectory:
+                        l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL,
+                        max_samples: int | None = None) -> Trajectory:
     """Time-stamped axis commands that follow ``toolpath`` on ``machine`` within its limits.
 
     Parameters
@@ -49,6 +78,10 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
         when the command stops the machine has not arrived yet; the dwell keeps that
         settling motion inside the trajectory, where errors are measured and where
         pre-compensation can act on it. 0 ends the trajectory when the command stops.
+    max_samples : int, optional
+        Largest number of samples (default :func:`default_max_samples`, sized to this
+        machine's memory). Checked on an estimate (:func:`estimate_samples`) before any
+        sample is made, and again on the planned motion.
 
     Returns
     -------
@@ -57,13 +90,24 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
         (C unwrapped, continuous through A = 0); reference ``P``, ``O`` at each sample.
         Starts and stops at rest.
     """
-    path = fit_toolpath(toolpath, l_eq=l_eq)
-    profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
-                        programmed_feed=toolpath.feed)
-    t, q, P, O = profile.t, profile.q, profile.P, profile.O
+    for name, value in (("feed", feed), ("ts", ts)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be positive and finite, got {plain(value)!r}", field=name)
     if not (dwell >= 0 and np.isfinite(dwell)):
-        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+        raise InputError(f"dwell must be a finite number >= 0, got {plain(dwell)!r}", field="dwell")
+    limit = default_max_samples() if max_samples is None else int(max_samples)
+    path = fit_toolpath(toolpath, l_eq=l_eq)
+    estimate = estimate_samples(path.length, feed, ts, dwell)
+    if not estimate <= limit:
+        raise InputError(
+            f"the trajectory would have at least {estimate:.3g} samples ({path.length:.6g} mm "
+            f"of path at most {feed:g} mm/s, sampled every {ts:g} s, and a {dwell:g} s dwell), "
+            f"more than the limit of {limit} (max_samples, option --max-samples; default sized "
+            "to this machine's memory)", source=toolpath.source or None, field="max_samples")
     n_hold = int(round(dwell / ts))
+    profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
+                        programmed_feed=toolpath.feed, max_samples=max(1, limit - n_hold))
+    t, q, P, O = profile.t, profile.q, profile.P, profile.O
     if n_hold:
         t = np.concatenate([t, t[-1] + ts * np.arange(1, n_hold + 1)])
         q, P, O = (np.concatenate([a, np.repeat(a[-1:], n_hold, axis=0)]) for a in (q, P, O))

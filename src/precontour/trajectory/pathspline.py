@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
-from ..errors import InputError, ToolPathError
+from ..errors import InputError, ToolPathError, plain
 from ..machine.kinematics import angle_between, normalize_orientations
 
 #: Equivalent length of one radian of tool rotation in the combined path parameter, mm/rad.
@@ -145,7 +145,7 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         raise ToolPathError(f"P and O must both have shape (M, 3), got {P.shape} and {O.shape}",
                             source=src)
     if not l_eq > 0 or not np.isfinite(l_eq):
-        raise ValueError(f"l_eq must be a positive finite length in mm/rad, got {l_eq!r}")
+        raise ValueError(f"l_eq must be a positive finite length in mm/rad, got {plain(l_eq)!r}")
     for name, arr in (("P", P), ("O", O)):
         bad = ~np.isfinite(arr).all(axis=1)
         if bad.any():

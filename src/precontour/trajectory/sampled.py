@@ -19,6 +19,10 @@ from ..errors import InputError
 #: Relative spread of time steps tolerated as "uniform" (CSV round-off of t).
 UNIFORM_TIME_RTOL = 1e-6
 
+#: Fewest samples of a trajectory file: the reference curves are quintic interpolating
+#: splines (6 samples) and the spline fit needs 4; one number for every command.
+MIN_SAMPLES = 6
+
 
 @dataclass(frozen=True)
 class Trajectory:
@@ -98,7 +102,8 @@ def check_uniform_time(t: np.ndarray, *, source: str | None = None, first_row: i
     """Check that ``t`` is finite, strictly increasing and uniformly spaced; return the step.
 
     Raises :class:`InputError` naming the first offending row (``first_row`` is the row
-    number of ``t[0]`` in the file).
+    number of ``t[0]`` in the file). Steps are compared with the first one, so a step that
+    changes at some row is reported at that row.
     """
     t = np.asarray(t, dtype=float)
     if t.size < min_samples:
@@ -107,18 +112,21 @@ def check_uniform_time(t: np.ndarray, *, source: str | None = None, first_row: i
     bad = ~np.isfinite(t)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        raise InputError(f"time is not finite ({t[row]})", source=source,
+        raise InputError(f"time is not finite ({float(t[row])})", source=source,
                          row=row + first_row, field="t")
     dt = np.diff(t)
     nonincreasing = dt <= 0
     if nonincreasing.any():
         row = int(np.flatnonzero(nonincreasing)[0]) + 1
-        raise InputError(f"time is not increasing ({t[row - 1]!r} then {t[row]!r})",
+        raise InputError(f"time is not increasing ({float(t[row - 1])!r} then "
+                         f"{float(t[row])!r})",
                          source=source, row=row + first_row, field="t")
-    step = (t[-1] - t[0]) / (t.size - 1)
-    off = np.abs(dt - step) > UNIFORM_TIME_RTOL * step + 1e-12
+    # Round-off of printed time stamps grows with |t|; the step is judged against it too.
+    slack = UNIFORM_TIME_RTOL * dt[0] + 1e-12 + 4 * np.spacing(np.abs(t[1:]).max())
+    off = np.abs(dt - dt[0]) > slack
     if off.any():
         row = int(np.flatnonzero(off)[0]) + 1
-        raise InputError(f"time is not uniformly sampled (step {dt[row - 1]:.9g} s, expected "
-                         f"{step:.9g} s)", source=source, row=row + first_row, field="t")
-    return float(step)
+        raise InputError(f"time is not uniformly sampled (step {float(dt[row - 1]):.9g} s, "
+                         f"the first step is {float(dt[0]):.9g} s)", source=source,
+                         row=row + first_row, field="t")
+    return float((t[-1] - t[0]) / (t.size - 1))

@@ -14,18 +14,19 @@ tool orientation is always O = dP/dZ, the direction in which the spindle axis mo
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
-from ...errors import InputError
+from ...errors import InputError, notice
 from .ac_trunnion import ACTrunnion
 from .xyzac_trt import XYZACTrunnion
 from .xyzbc_trt import XYZBCTrunnion
 
-#: Tolerance on | |O| - 1 | below which orientations are normalized (with a warning) instead
-#: of being rejected.
-UNIT_TOLERANCE = 1e-6
+#: Tolerance on | |O| - 1 | below which orientations are normalized (with one notice) instead
+#: of being rejected. CAM output rounds components to 4 decimals (|O| off by up to 1e-4), some
+#: to 3 (up to 9e-4); a larger deviation is no rounding but a wrong vector.
+UNIT_TOLERANCE = 1e-3
+#: | |O| - 1 | up to which normalizing is silent (round-off of 12 or more digits).
+SILENT_TOLERANCE = 1e-12
 
 KINEMATICS_TYPES = {
     "ac-trunnion": ACTrunnion.from_table,
@@ -50,8 +51,9 @@ def normalize_orientations(O: np.ndarray, *, source: str | None = None,
                            first_row: int = 1) -> np.ndarray:
     """Return unit orientation vectors, or raise naming the first non-unit row.
 
-    Rows whose length is within :data:`UNIT_TOLERANCE` of one are normalized (with a single
-    warning when any needed more than round-off); others raise :class:`InputError`.
+    Rows whose length is within :data:`UNIT_TOLERANCE` of one are normalized (with one notice,
+    :func:`precontour.errors.notice`, when any needed more than round-off); others raise
+    :class:`InputError`.
     """
     O = np.asarray(O, dtype=float)
     norm = np.linalg.norm(O, axis=-1)
@@ -62,7 +64,9 @@ def normalize_orientations(O: np.ndarray, *, source: str | None = None,
         value = np.atleast_1d(norm)[row]
         raise InputError(f"orientation vector is not unit length (|O| = {value:.9g})",
                          source=source, row=row + first_row, field="O")
-    if np.any(deviation > 1e-12):
-        warnings.warn(f"{source or 'orientations'}: normalized orientation vectors with "
-                      f"|O| off by up to {deviation.max():.2g}", stacklevel=2)
+    changed = deviation > SILENT_TOLERANCE
+    if np.any(changed):
+        notice(f"{source or 'orientations'}: normalized {int(np.count_nonzero(changed))} "
+               f"orientation vectors with |O| off by up to {float(deviation.max()):.2g} "
+               f"(tolerance {UNIT_TOLERANCE:g})")
     return O / norm[..., None]
