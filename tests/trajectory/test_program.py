@@ -154,7 +154,7 @@ def test_line_column_round_trip(machine, tmp_path):
         np.testing.assert_array_equal(back.q, traj.q)
     bad = tmp_path / "bad.csv"
     bad.write_text("t,X,Y,Z,A,C,line\n0,0,0,0,0,0,1\n0.001,0,0,0,0,0,1.5\n"
-                   "0.002,0,0,0,0,0,2\n0.003,0,0,0,0,0,2\n")
+                   + "".join(f"0.00{k},0,0,0,0,0,2\n" for k in range(2, 6)))
     with pytest.raises(PrecontourError, match=r"bad.csv, row 2, field 'line': line number is "
                                               r"not a whole number \(1.5\)"):
         read_trajectory(bad)
