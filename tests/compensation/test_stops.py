@@ -59,6 +59,7 @@ def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command
     result = compensate(fan_like, machine.kinematics, models, machine_actual=punishing,
                         learning_passes=1)
     assert result.learning.chosen == "uncompensated"
+    assert result.iterations == 0
     assert np.array_equal(result.trajectory.q, fan_like.q)
     assert all(not c.accepted for c in result.learning.candidates[1:])
 

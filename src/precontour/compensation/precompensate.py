@@ -44,7 +44,8 @@ class CompensationResult:
     before, after : ContourErrors
         Predicted contour errors of the original and the compensated commands.
     iterations : int
-        Compensation passes kept (1 = the paper's single pass).
+        Compensation passes kept (1 = the paper's single pass; 0 when learning against a
+        machine model kept the uncompensated command).
     history : tuple of dict
         Predicted max/mean errors after each pass tried (``ContourErrors.summary``), the
         first entry being the uncompensated command.
@@ -164,6 +165,8 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                                              progress=learning_progress)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
+        if learning.chosen == "uncompensated":
+            passes = 0
     # ---- end hook ----
     return CompensationResult(trajectory=traj.with_axes(q_best), before=before,
                               after=after_best, iterations=passes, history=tuple(history),
