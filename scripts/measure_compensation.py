@@ -18,7 +18,8 @@ Paths: the built-in ones, and test paths whose stops and reversals differ from t
 the tool still turns; ``flank``, a flank path between two B-spline curves (tool from the lower
 to the upper curve); ``interior-stop``, a move that stops for 0.1 s halfway and then goes on.
 
-Run: ``python scripts/measure_compensation.py [--test-paths] [PATH ...] > docs/compensation.md``.
+Run: ``python scripts/measure_compensation.py [--test-paths] [PATH ...] > docs/compensation.md``;
+its last section holds the README's two tables in the README's format.
 """
 
 from __future__ import annotations
@@ -107,20 +108,28 @@ def trajectory_of(name: str, machine) -> Trajectory:
     return generate_trajectory(toolpath() if toolpath else builtin_path(name), machine)
 
 
-def where(traj: Trajectory, index: int) -> str:
+def where(traj: Trajectory, index: int, short: bool = False) -> str:
     """Time of a sample, and its place: in motion, or into the final dwell."""
     rest = final_rest_index(traj.q)
     t = traj.t[index]
     if rest is not None and index >= rest:
-        return f"{t:.3f} s ({1e3 * (t - traj.t[rest]):.0f} ms into the final dwell)"
+        dwell = "the dwell" if short else "the final dwell"
+        return f"{t:.3f} s ({1e3 * (t - traj.t[rest]):.0f} ms into {dwell})"
     stop = traj.t[rest] if rest is not None else traj.t[-1]
+    if short:
+        return f"{t:.3f} s ({1e3 * (stop - t):.0f} ms before the stop)"
     return f"{t:.3f} s (in motion, {1e3 * (stop - t):.0f} ms before the final stop)"
+
+
+def _name(path: str) -> str:
+    return f"`{path}`" if path in TEST_PATHS else path
 
 
 def main(paths: list[str]) -> None:
     machine = load_machine("zhang2013")
     start = time.perf_counter()
     rows, places = [], []
+    readme_rows, readme_places = [], []
     for path in paths:
         traj = trajectory_of(path, machine)
         reference = ReferencePath.from_trajectory(traj)
@@ -142,6 +151,7 @@ def main(paths: list[str]) -> None:
             learned = compensate(traj, machine.kinematics, models, machine_actual=realistic,
                                  learning_passes=DEFAULT_LEARNING_PASSES)
             learn_time = time.perf_counter() - learn_start
+            cell = {}    # (machine, label) -> "tip max / mean, ori max / mean" reductions
             for name, options in MACHINES.items():
                 before = run(traj, options)
                 s0 = before.summary()
@@ -160,15 +170,19 @@ def main(paths: list[str]) -> None:
                     rows.append(f"| {path} | {controller} | {name} | {label} | " +
                                 " | ".join(f"{s1[k]:.4g}" for k in KEYS) +
                                 f" | {red[0]:.1f} / {red[1]:.1f} | {red[2]:.1f} / {red[3]:.1f} |")
+                    cell[(name, label.split(" (")[0])] = (
+                        f"{red[0]:.1f} / {red[1]:.1f}, {red[2]:.1f} / {red[3]:.1f}")
                     if name == "realistic" and label == "1":
                         linear = after
                     elif name == "realistic" and result is learned:
                         learned_errors = after
                 if name == "realistic":
-                    cells = []
+                    cells, short = [], []
                     for errors in (before, linear, learned_errors):
                         i = int(np.argmax(errors.tip))
                         cells.append(f"{1e3 * errors.tip[i]:.2f} at {where(traj, i)}")
+                        short.append(f"{1e3 * errors.tip[i]:.2f} um at "
+                                     f"{where(traj, i, short=True)}")
                     red = [100 * (1 - e.tip.max() / before.tip.max())
                            for e in (linear, learned_errors)]
                     places.append(f"| {path} | {controller} | " + " | ".join(cells) +
@@ -176,6 +190,16 @@ def main(paths: list[str]) -> None:
                                   f"{learned.learning.chosen} | "
                                   f"{learned.learning.machine_runs} runs, {learn_time:.1f} s "
                                   f"({learn_time / linear_time:.0f} x the 1-pass time) |")
+                    readme_places.append(f"| {_name(path)} | {controller} | "
+                                         + " | ".join(short)
+                                         + f" ({learned.learning.chosen}) |")
+            kept = compensated[4].iterations
+            readme_rows.append(
+                f"| {_name(path)} | {controller} | {cell[('exact', '1')]} | "
+                f"{cell[('exact', 'up to 4')]} ({kept}) | {cell[('realistic', '1')]} | "
+                f"**{cell[('realistic', '1 + learning')]}** | "
+                + " | ".join(f"{cell[(m, '1')]}; {cell[(m, '1 + learning')]}"
+                             for m in ("J,B +20 %", "J,B -20 %")) + " |")
     print("# Measured contour-error reductions\n")
     print("Output of `python scripts/measure_compensation.py --test-paths > "
           "docs/compensation.md` (virtual machine; tip in um, orientation in mrad; passes 0 = "
@@ -193,6 +217,17 @@ def main(paths: list[str]) -> None:
           "| learning kept | learning cost |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(places))
+    print("\n## The README's tables\n")
+    print("Reductions of the max / mean contour errors, tip then orientation, in %:\n")
+    print("| path | controller | exact model, 1 pass | exact, up to 4 passes (passes kept) "
+          "| realistic machine, 1 pass | realistic, 1 pass + learning (default) "
+          "| J, B +20 %: 1 pass; + learning | J, B -20 %: 1 pass; + learning |")
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(readme_rows))
+    print("\nWhere the largest tip error is, realistic machine:\n")
+    print("| path | controller | uncompensated | 1 pass | 1 pass + learning (kept) |")
+    print("|---|---|---|---|---|")
+    print("\n".join(readme_places))
     print(f"\n({time.perf_counter() - start:.1f} s)", file=sys.stderr)
 
 

@@ -108,12 +108,14 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         applies the paper's single pass unconditionally, as a comparison of methods needs.
     machine_actual : callable, optional
         A nonlinear machine model, commands (N, 5) -> actual axis positions (N, 5), e.g. the
-        virtual machine with friction. With it (``method="contour"``), the linear result is
+        realistic virtual machine, ``lambda q: simulate(traj.t, q, machine, controller).q_act``
+        (:func:`precontour.simulation.simulate`; what ``precontour compensate`` uses). With it (``method="contour"``), the linear result is
         improved by ``learning_passes`` passes of learning against it, where friction matters
         (stops, reversals, the final dwell; :func:`precontour.compensation.stops.learn_at_stops`),
         and a command is kept only if it is nowhere worse on it than the uncompensated one.
     learning_passes : int
-        Passes of that learning (0: the linear result, only checked against the model).
+        Passes of that learning (0: the linear result and its settled tails, only checked
+        against the model).
     learning_progress : callable, optional
         Called as ``learning_progress(label, summary_dict)`` after each command tried on the
         machine model.
