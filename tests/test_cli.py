@@ -60,10 +60,11 @@ def test_pipeline_end_to_end(paper_csv, tmp_path, capsys):
     assert pred.read_text().splitlines()[0] == "t,eX,eY,eZ,eA,eC,eps_tip,eps_ori"
     comp = tmp_path / "comp.csv"
     assert main(["compensate", str(paper_csv), "--controller", "pid-high", "--iterations", "2",
-                 "-o", str(comp)]) == 0
+                 "--learn", "1", "-o", str(comp)]) == 0
     assert comp.read_text().splitlines()[0] == header
     printed = capsys.readouterr().out
     assert "predicted before" in printed and "predicted after" in printed
+    assert "learned against the virtual machine with friction (1 pass(es), 10 runs)" in printed
     sim = tmp_path / "sim.csv"
     assert main(["simulate", str(comp), "--controller", "pid-high", "--reference",
                  str(paper_csv), "--friction", "on", "--ff-friction", "on", "-o", str(sim)]) == 0
@@ -139,6 +140,25 @@ def test_new_commands_bad_inputs(traj_csv, paper_csv, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["compensate", str(paper_csv), "--iterations", "0", "-o", out])
     assert "must be >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["compensate", str(paper_csv), "--learn", "-1", "-o", out])
+    assert "must be >= 0" in capsys.readouterr().err
+
+
+def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, capsys):
+    from precontour import load_machine
+    from precontour.compensation.precompensate import compensate
+    from precontour.tables import read_trajectory
+
+    out = tmp_path / "comp.csv"
+    assert main(["compensate", str(paper_csv), "--controller", "pid-low", "--learn", "0",
+                 "-o", str(out)]) == 0
+    assert "learned against" not in capsys.readouterr().out
+    machine = load_machine("zhang2013")
+    traj = read_trajectory(paper_csv)
+    linear = compensate(traj, machine.kinematics,
+                        machine.controller("pid-low").error_models(machine.drives))
+    assert np.array_equal(read_trajectory(out).q, linear.trajectory.q)
 
 
 def test_module_entry_point(traj_csv, tmp_path):

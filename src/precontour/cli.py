@@ -23,6 +23,7 @@ from .machine.drives import AXES, ROTARY_AXES
 from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
                            compensate)
+from .compensation.stops import DEFAULT_LEARNING_PASSES
 from .prediction.contour import ReferencePath, contour_errors
 from .errors import NOTICES, InputError, PrecontourError
 from .files import Terminated, input_files, sigterm_as_exception
@@ -173,6 +174,15 @@ def build_parser() -> argparse.ArgumentParser:
     compensate.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
                             help="largest number of compensation passes; stops early when the "
                                  "predicted contour errors stop improving (default 1)")
+    compensate.add_argument("--learn", type=_nonnegative_int, default=DEFAULT_LEARNING_PASSES,
+                            metavar="N",
+                            help="passes of learning against the virtual machine with friction "
+                                 "(discrete control at the servo period, Stribeck friction, "
+                                 "friction feed-forward) where the linear model misses: stops, "
+                                 "reversals, the final dwell; keeps a command only if it is "
+                                 "nowhere worse there than the uncompensated one; each pass "
+                                 "costs about five virtual-machine runs; 0 = off "
+                                 f"(default {DEFAULT_LEARNING_PASSES}; contour method only)")
     _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
     compensate.add_argument("-o", "--output", type=Path, required=True,
                             help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -281,6 +291,16 @@ def _nonnegative_float(text: str) -> float:
     return _number(text, allow_zero=True)
 
 
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -371,15 +391,38 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
+    machine_actual = None
+    if args.learn and args.method == "contour":
+        if abs(traj.ts - machine.servo_period) > 1e-9 * machine.servo_period:
+            print(f"  no learning: the trajectory's sample period {traj.ts:g} s is not the "
+                  f"servo period {machine.servo_period:g} s of the virtual machine",
+                  file=sys.stderr)
+        else:
+            machine_actual = virtual_machine_actual(traj.t, machine, args.controller)
+
+    def learning_progress(label, summary):
+        print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
+              f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
+
     with _about(args.trajectory):
         result = compensate(traj, machine.kinematics, models, method=args.method,
                             iterations=args.iterations, tol_linear=args.tol_linear,
-                            tol_rotary=args.tol_rotary, progress=progress)
+                            tol_rotary=args.tol_rotary, progress=progress,
+                            machine_actual=machine_actual, learning_passes=args.learn,
+                            learning_progress=learning_progress)
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
     print("predicted before: " + _contour_line(result.before))
     print("predicted after:  " + _contour_line(result.after))
+    if result.learning is not None:
+        learning = result.learning
+        print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
+              f"{learning.machine_runs} runs): kept {learning.chosen}")
+        for name, summary in (("uncompensated", learning.uncompensated),
+                              ("linear compensation", learning.linear),
+                              ("kept", learning.kept)):
+            print(f"  {name + ':':<21}" + _summary_line(summary))
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
 
@@ -468,8 +511,21 @@ def run_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def virtual_machine_actual(t: np.ndarray, machine, controller: str):
+    """The realistic virtual machine (discrete control at the servo period, friction, friction
+    feed-forward) as the commands -> actual axis positions model that compensation learns
+    against."""
+    def actual(q: np.ndarray) -> np.ndarray:
+        return simulate(t, q, machine, controller, mode="discrete", friction=True,
+                        ff_friction=True).q_act
+    return actual
+
+
 def _contour_line(errors) -> str:
-    s = errors.summary()
+    return _summary_line(errors.summary())
+
+
+def _summary_line(s: dict) -> str:
     return (f"tip max {s['tip_max_um']:.3f} um, mean {s['tip_mean_um']:.3f} um; orientation "
             f"max {s['ori_max_mrad']:.4f} mrad, mean {s['ori_mean_mrad']:.4f} mrad")
 

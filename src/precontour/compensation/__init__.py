@@ -2,8 +2,12 @@
 
 - :mod:`.precompensate` -- :func:`compensate`, contour (orientation first, then tool tip; spec
   section 6) or the tracking-error baseline, with optional iteration.
+- :mod:`.stops` -- learning against a nonlinear machine model (friction) where the linear model
+  fails: stops, reversals, the final dwell.
 """
 
 from .precompensate import METHODS, CompensationResult, compensate
+from .stops import DEFAULT_LEARNING_PASSES, LearningReport, learn_at_stops
 
-__all__ = ["METHODS", "CompensationResult", "compensate"]
+__all__ = ["METHODS", "CompensationResult", "compensate", "DEFAULT_LEARNING_PASSES",
+           "LearningReport", "learn_at_stops"]

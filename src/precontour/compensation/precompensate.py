@@ -24,6 +24,7 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
+from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
 
 METHODS: tuple[str, ...] = ("contour", "tracking")
 #: Spline fit tolerances used when compensating: ten times finer than for prediction alone,
@@ -43,12 +44,16 @@ class CompensationResult:
     before, after : ContourErrors
         Predicted contour errors of the original and the compensated commands.
     iterations : int
-        Compensation passes kept (1 = the paper's single pass).
+        Compensation passes kept (1 = the paper's single pass; 0 when learning against a
+        machine model kept the uncompensated command).
     history : tuple of dict
         Predicted max/mean errors after each pass tried (``ContourErrors.summary``), the
         first entry being the uncompensated command.
     method : str
         ``"contour"`` or ``"tracking"``.
+    learning : LearningReport or None
+        What learning against the nonlinear machine model tried and kept
+        (:mod:`precontour.compensation.stops`); None when no machine model was given.
     """
 
     trajectory: Trajectory
@@ -57,6 +62,7 @@ class CompensationResult:
     iterations: int
     history: tuple
     method: str
+    learning: LearningReport | None = None
 
 
 def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
@@ -71,7 +77,9 @@ def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
 def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
                method: str = "contour", iterations: int = 1, tol_linear: float | None = None,
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
-               progress=None, min_passes: int = 0) -> CompensationResult:
+               progress=None, min_passes: int = 0, machine_actual: MachineActual | None = None,
+               learning_passes: int = DEFAULT_LEARNING_PASSES,
+               learning_progress=None) -> CompensationResult:
     """Pre-compensate the axis commands of ``traj`` (which must carry its reference P, O).
 
     Parameters
@@ -98,6 +106,19 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     min_passes : int
         Passes kept even when they do not improve the prediction (0 to ``iterations``); 1
         applies the paper's single pass unconditionally, as a comparison of methods needs.
+    machine_actual : callable, optional
+        A nonlinear machine model, commands (N, 5) -> actual axis positions (N, 5), e.g. the
+        realistic virtual machine, ``lambda q: simulate(traj.t, q, machine, controller).q_act``
+        (:func:`precontour.simulation.simulate`; what ``precontour compensate`` uses). With it (``method="contour"``), the linear result is
+        improved by ``learning_passes`` passes of learning against it, where friction matters
+        (stops, reversals, the final dwell; :func:`precontour.compensation.stops.learn_at_stops`),
+        and a command is kept only if it is nowhere worse on it than the uncompensated one.
+    learning_passes : int
+        Passes of that learning (0: the linear result and its settled tails, only checked
+        against the model).
+    learning_progress : callable, optional
+        Called as ``learning_progress(label, summary_dict)`` after each command tried on the
+        machine model.
     """
     if method not in METHODS:
         raise ValueError(f"unknown compensation method {method!r}; choose one of "
@@ -136,9 +157,22 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         else:
             break
     _, q_best, after_best, passes = best
+    # ---- hook: stops and reversals under friction (compensation/stops.py) ----
+    learning = None
+    if machine_actual is not None and method == "contour":
+        def contour_step(q, q_act_machine, actual):
+            return _contour_pass(q, q_act_machine, traj, reference, kinematics, actual)
+        q_learned, learning = learn_at_stops(traj.q, q_best, traj.ts, machine_actual, errors_of,
+                                             contour_step, passes=learning_passes,
+                                             progress=learning_progress)
+        if q_learned is not q_best:
+            q_best, after_best = q_learned, errors_of(predict(q_learned))
+        if learning.chosen == "uncompensated":
+            passes = 0
+    # ---- end hook ----
     return CompensationResult(trajectory=traj.with_axes(q_best), before=before,
                               after=after_best, iterations=passes, history=tuple(history),
-                              method=method)
+                              method=method, learning=learning)
 
 
 def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):

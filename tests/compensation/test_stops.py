@@ -1,0 +1,118 @@
+import numpy as np
+import pytest
+
+from precontour.compensation.precompensate import compensate
+from precontour.compensation.stops import (SETTLE_DELAYS, final_rest_index, learn_at_stops,
+                                           settle_final_dwell)
+from precontour.prediction.contour import ReferencePath, contour_errors
+from precontour.simulation.virtual_machine import simulate
+from precontour.toolpath import ToolPath
+from precontour.trajectory.builtin_paths import builtin_path
+from precontour.trajectory.generate import generate_trajectory
+
+REALISTIC = dict(mode="discrete", friction=True, ff_friction=True)
+
+
+def test_final_rest_index_by_hand():
+    q = np.zeros((6, 5))
+    q[:3, 0] = [0.0, 1.0, 2.0]
+    q[3:, 0] = 3.0
+    assert final_rest_index(q) == 3            # q[3:] all equal q[-1]
+    q[-1, 4] = 1e-12
+    assert final_rest_index(q) is None         # still moving at the last sample
+    assert final_rest_index(np.ones((4, 5))) == 0
+
+
+def test_settle_final_dwell_holds_the_end_and_keeps_the_input():
+    q_ref = np.repeat(np.linspace(0, 1, 8)[:, None], 5, axis=1)
+    q = q_ref + 0.01
+    settled = settle_final_dwell(q, q_ref, 5)
+    assert np.array_equal(settled[:5], q[:5])
+    assert np.all(settled[5:] == q_ref[-1])
+    assert np.all(q[5:] != q_ref[-1])          # the input is not modified
+
+
+def _fan_like(n_points=25):
+    """A short fan-like sweep whose tip reverses in x and whose tool still turns at the end."""
+    u = np.linspace(0.0, 1.0, n_points)
+    P = np.stack([15.0 * np.sin(np.pi * u), 40.0 * u - 20.0, np.zeros_like(u)], axis=1)
+    beta = 0.4 * np.sin(1.75 * np.pi * u)
+    O = np.stack([np.full_like(u, np.sin(0.1)), np.sin(beta), np.cos(beta)], axis=1)
+    return ToolPath(P=P, O=O / np.linalg.norm(O, axis=1, keepdims=True))
+
+
+@pytest.fixture(scope="module")
+def fan_like(machine):
+    return generate_trajectory(_fan_like(), machine, dwell=0.15)
+
+
+def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command(machine,
+                                                                                   fan_like):
+    """Never worse: on a (made-up) machine whose actual motion moves away from the reference
+    by five times whatever the command changes, every compensated candidate is worse than the
+    reference command, so the reference command is kept."""
+    models = machine.controller("pid-high").error_models(machine.drives)
+
+    def punishing(q):
+        return fan_like.q - 5.0 * (q - fan_like.q)
+
+    result = compensate(fan_like, machine.kinematics, models, machine_actual=punishing,
+                        learning_passes=1)
+    assert result.learning.chosen == "uncompensated"
+    assert result.iterations == 0
+    assert np.array_equal(result.trajectory.q, fan_like.q)
+    assert all(not c.accepted for c in result.learning.candidates[1:])
+
+
+def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like):
+    models = machine.controller("pid-high").error_models(machine.drives)
+    calls = []
+
+    def actual(q):
+        calls.append(1)
+        return simulate(fan_like.t, q, machine, "pid-high", **REALISTIC).q_act
+
+    passes = 2
+    result = compensate(fan_like, machine.kinematics, models, machine_actual=actual,
+                        learning_passes=passes)
+    report = result.learning
+    # reference, then per iterate (linear + passes) itself and its settled tails, plus the
+    # machine run of the orientation-corrected command inside each pass
+    expected = 1 + (passes + 1) * (1 + len(SETTLE_DELAYS)) + passes
+    assert report.machine_runs == len(calls) == expected
+    assert len(report.candidates) == 1 + (passes + 1) * (1 + len(SETTLE_DELAYS))
+    # the kept command, re-run independently, has the reported errors
+    reference = ReferencePath.from_trajectory(fan_like)
+    rerun = contour_errors(reference, simulate(fan_like.t, result.trajectory.q, machine,
+                                               "pid-high", **REALISTIC).q_act,
+                           machine.kinematics).summary()
+    for key, value in report.kept.items():
+        assert rerun[key] == pytest.approx(value, rel=1e-9)
+        assert value <= report.uncompensated[key]          # nowhere worse
+    assert report.kept["tip_max_um"] <= report.linear["tip_max_um"]
+
+
+def test_learning_removes_the_final_stop_error_on_the_fan_path(machine):
+    """Issue 13: with pid-high on the realistic machine, one linear pass leaves 20 um of the
+    fan path's 52 um at the final stop; learning against the machine removes >= 85 %."""
+    traj = generate_trajectory(builtin_path("fan"), machine)
+    models = machine.controller("pid-high").error_models(machine.drives)
+
+    def actual(q):
+        return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
+
+    linear = compensate(traj, machine.kinematics, models)
+    learned = compensate(traj, machine.kinematics, models, machine_actual=actual)
+    reference = ReferencePath.from_trajectory(traj)
+
+    def tip_max(q):
+        return contour_errors(reference, actual(q), machine.kinematics).tip.max()
+
+    before = tip_max(traj.q)
+    assert tip_max(linear.trajectory.q) > 0.3 * before          # the problem
+    assert tip_max(learned.trajectory.q) <= 0.15 * before       # solved
+
+
+def test_learning_passes_must_not_be_negative(machine, fan_like):
+    with pytest.raises(ValueError, match="learning passes"):
+        learn_at_stops(fan_like.q, fan_like.q, fan_like.ts, lambda q: q, None, None, passes=-1)
