@@ -150,6 +150,27 @@ def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
     return path
 
 
+def write_text(path: str | Path, text: str, *, inputs: Iterable[str | Path] = ()) -> Path:
+    """Write a text file (e.g. a machine file) atomically; refuse to overwrite an input."""
+    path = Path(path)
+    for source in inputs:
+        if _same_file(path, Path(source)):
+            raise InputError("refusing to overwrite an input file; choose another -o",
+                             source=str(path))
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise InputError("output directory does not exist", source=str(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
 def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     import pyarrow as pa
     import pyarrow.csv as pacsv
