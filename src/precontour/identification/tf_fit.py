@@ -28,8 +28,11 @@ from scipy import linalg, optimize, signal
 
 #: Orders tried by ``order="auto"``.
 AUTO_ORDERS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
-#: ``order="auto"`` takes the lowest order whose held-out error is within this factor of the best.
+#: ``order="auto"`` takes the lowest order whose held-out error is within this factor of the
+#: best, or within AUTO_ORDER_FLOOR_PCT (percentage points of max|e|) of it: smaller gains are
+#: below what a log can tell apart.
 AUTO_ORDER_SLACK = 1.25
+AUTO_ORDER_FLOOR_PCT = 0.1
 #: Fraction of an axis's active span (first to last commanded move) held out for validation.
 HOLDOUT_FRACTION = 0.25
 #: Samples within this time (s) after the command rests or reverses are left out of the cost:
@@ -268,7 +271,8 @@ def identify_axis(axis: str, X: np.ndarray, x: np.ndarray, ts: float, *,
         tried[n] = _pct(err[held][weights[held] > 0], e[held])[0]
         candidates[n] = model
     best = min(tried.values())
-    chosen = min(n for n, v in tried.items() if v <= AUTO_ORDER_SLACK * best + 1e-9)
+    chosen = min(n for n, v in tried.items()
+                 if v <= max(AUTO_ORDER_SLACK * best, best + AUTO_ORDER_FLOOR_PCT))
     if len(orders) > 1:
         # The held-out score of the chosen order, polished like the final model.
         model = fit_discrete(dX, e, chosen, ts, estimation)
