@@ -45,7 +45,7 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
         try:
             with np.load(path, allow_pickle=False) as data:
                 raw = {name: data[name] for name in data.files}
-        except (OSError, ValueError) as exc:
+        except Exception as exc:  # a damaged archive raises zipfile, zlib, EOF or value errors
             raise InputError(f"cannot read .npz file: {exc}", source=source) from None
     else:
         import pyarrow.parquet as pq
@@ -202,7 +202,7 @@ def _csv_error(path: Path, names: list[str], present: list[str], message: str) -
     import csv
 
     source = str(path)
-    with open(path, newline="") as handle:
+    with open(path, newline="", encoding="utf-8", errors="replace") as handle:
         reader = csv.reader(handle)
         next(reader, None)
         row = 0

@@ -42,6 +42,8 @@ ACTUAL_COLUMNS: tuple[str, ...] = tuple(f"{a}_act" for a in AXES)
 CURRENT_COLUMNS: tuple[str, ...] = tuple(f"I_{a}" for a in AXES)
 #: Consecutive samples at a current column's extreme value that count as saturation.
 SATURATION_RUN = 3
+#: A time step longer than this many typical steps is a gap (lost samples).
+GAP_FACTOR = 1.5
 #: Fewest samples a log needs.
 MIN_SAMPLES = 20
 
@@ -266,6 +268,13 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
                              field="t")
         base = data["n"] if "n" in data else np.arange(n, dtype=float)
         t = (base - base[0]) * period
+    dt = np.diff(t)
+    typical = np.median(dt)
+    gaps = np.flatnonzero(dt > GAP_FACTOR * typical) if typical > 0 else np.zeros(0, int)
+    if gaps.size:
+        k = int(gaps[0]) + 1
+        raise InputError(f"gap: {dt[k - 1]:.6g} s between samples, the log's period is "
+                         f"{typical:.6g} s (samples lost?)", source=source, row=row_of(k), field="t")
     try:
         check_uniform_time(t, min_samples=MIN_SAMPLES)
     except InputError as exc:
