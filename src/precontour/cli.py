@@ -433,6 +433,9 @@ def run_compare(args: argparse.Namespace) -> int:
 
 def run_identify(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    if args.output.exists() and args.log.exists() and args.output.samefile(args.log):
+        raise InputError("refusing to overwrite an input file; choose another -o",
+                         source=str(args.output))
     base = load_machine(args.machine)
     data, _ = machine_data(args.machine)
     columns = None if args.columns is None else args.columns.split(",")

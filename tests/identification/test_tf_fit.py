@@ -7,7 +7,7 @@ import pytest
 import scipy.signal as sig
 
 from precontour import builtin_path, generate_trajectory, predict_tracking, simulate
-from precontour.identification.tf_fit import (identify_axis, linear_regime, stabilize,
+from precontour.identification.tf_fit import (NotIdentifiable, identify_axis, linear_regime, stabilize,
                                               tustin_to_continuous)
 from precontour.machine.drives import LinearErrorModel
 
@@ -119,6 +119,9 @@ def test_hidden_plant_with_friction_beats_the_nominal_model(machine):
     assert ident_pct < 12.0 and nominal_pct > 1.5 * ident_pct, (ident_pct, nominal_pct)
 
 
-def test_an_axis_that_never_moves_is_refused():
-    with pytest.raises(ValueError, match="never moves"):
+def test_an_axis_the_log_cannot_identify_is_refused_in_one_line():
+    with pytest.raises(NotIdentifiable, match="never moves"):
         identify_axis("Y", np.zeros(100), np.zeros(100), 1e-3)
+    t = np.arange(300) * 1e-3
+    with pytest.raises(NotIdentifiable, match="too few to identify"):
+        identify_axis("Y", np.sin(t), np.sin(t), 1e-3)

@@ -19,7 +19,7 @@ from ..machine.drives import AXES, LinearErrorModel
 from ..machine.machine_file import Machine, machine_file_text, parse_machine
 from .physical import PhysicalParameters, identify_physical
 from .servo_log import ServoLog
-from .tf_fit import AxisIdentification, identify_axis
+from .tf_fit import AxisIdentification, NotIdentifiable, identify_axis
 
 #: Largest order accepted by ``order=N``.
 MAX_ORDER = 10
@@ -115,11 +115,11 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
             notes[axis] = f"axis {axis}: not in the log; kept the base model ({ctrl.name})"
             continue
         X, x = log.command[axis], log.actual[axis]
-        if np.all(X == X[0]):
-            notes[axis] = (f"axis {axis}: the command never moves in the log, so it cannot be "
-                           f"identified; kept the base model ({ctrl.name})")
+        try:
+            fits[axis] = identify_axis(axis, X, x, ts, order=order)
+        except NotIdentifiable as exc:
+            notes[axis] = f"{exc}; kept the base model ({ctrl.name})"
             continue
-        fits[axis] = identify_axis(axis, X, x, ts, order=order)
         if axis in log.current:
             found = identify_physical(base.drive(axis), x, log.current[axis], ts)
             if found is None:
@@ -127,6 +127,9 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
                                "friction from the currents; kept the base drive")
             else:
                 physical[axis] = found
+    if not fits:
+        raise InputError("no axis of the log can be identified: " + "; ".join(
+            notes[a] for a in AXES if a in notes), source=log.source)
     if period_note:
         notes["period"] = period_note
 

@@ -46,6 +46,14 @@ SM_ITERATIONS = 20
 MAX_POLE_RADIUS = 0.9995
 
 
+#: Fewest samples in the linear regime an axis needs to be identified.
+MIN_FIT_SAMPLES = 200
+
+
+class NotIdentifiable(ValueError):
+    """The log does not determine this axis's model (the message says why, in one line)."""
+
+
 @dataclass(frozen=True)
 class DiscreteErrorModel:
     """e = b(q^-1)/a(q^-1) dX at sample period ``ts`` (a[0] = 1; b has len(a) - 1 terms)."""
@@ -252,13 +260,21 @@ def identify_axis(axis: str, X: np.ndarray, x: np.ndarray, ts: float, *,
     dX = np.diff(X, prepend=X[0])
     span = active_span(X)
     if span is None:
-        raise ValueError(f"axis {axis}: the command never moves")
+        raise NotIdentifiable(f"axis {axis}: the command never moves in the log, so it cannot be "
+                              "identified")
     first, last = span
     holdout_start = last - int(HOLDOUT_FRACTION * (last - first))
     weights = linear_regime(X, ts, friction_guard)
     weights[:burn_in] = 0.0
     estimation = weights.copy()
     estimation[holdout_start:] = 0.0
+    if estimation.sum() < MIN_FIT_SAMPLES or weights[holdout_start:].sum() < MIN_FIT_SAMPLES // 4:
+        raise NotIdentifiable(
+            f"axis {axis}: only {int(weights.sum())} samples move steadily (away from rests and "
+            f"reversals), too few to identify it; record a longer motion (precontour excite)")
+    if not np.any(e[weights > 0]):
+        raise NotIdentifiable(f"axis {axis}: the measured tracking error is exactly zero, so "
+                              "there is no loop dynamics to identify")
     held = slice(holdout_start, last)
 
     orders = AUTO_ORDERS if order == "auto" else (int(order),)
