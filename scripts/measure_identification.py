@@ -66,8 +66,10 @@ def main() -> None:
           f"({exc.n_samples} samples), simulated in {t_sim:.1f} s, identified in {t_id:.1f} s")
     for axis, fit in result.axes.items():
         print(f"  {axis}: order {fit.order}, fit {fit.fit_pct:.2f} %, held-out {fit.holdout_pct:.2f} %")
+    # "plant": the hidden plant's own continuous linear model (what a perfect J, B would give).
     models = {"identified": result.identified_models(),
-              "nominal": base.controller(args.controller).error_models(base.drives)}
+              "nominal": base.controller(args.controller).error_models(base.drives),
+              "plant": base.controller(args.controller).error_models(plant.drives)}
     print("\nprediction error, max|e_pred - e| in % of max|e| per axis X Y Z A C")
     comp_rows = []
     for name in PATHS:

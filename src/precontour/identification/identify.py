@@ -19,7 +19,7 @@ from ..machine.drives import AXES, LinearErrorModel
 from ..machine.machine_file import Machine, machine_file_text, parse_machine
 from .physical import PhysicalParameters, identify_physical
 from .servo_log import ServoLog
-from .tf_fit import AxisIdentification, NotIdentifiable, identify_axis
+from .tf_fit import AxisIdentification, NotIdentifiable, friction_guard_for, identify_axis
 
 #: Largest order accepted by ``order=N``.
 MAX_ORDER = 10
@@ -116,7 +116,9 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
             continue
         X, x = log.command[axis], log.actual[axis]
         try:
-            fits[axis] = identify_axis(axis, X, x, ts, order=order)
+            # The base loop's slowest pole sets how long friction transients are left out.
+            guard = friction_guard_for(base_models[AXES.index(axis)].poles)
+            fits[axis] = identify_axis(axis, X, x, ts, order=order, friction_guard=guard)
         except NotIdentifiable as exc:
             notes[axis] = f"{exc}; kept the base model ({ctrl.name})"
             continue

@@ -40,6 +40,10 @@ HOLDOUT_FRACTION = 0.25
 #: model describes. Speeds below LOW_SPEED_FRACTION of the axis's top speed count as rest.
 FRICTION_GUARD = 0.1
 LOW_SPEED_FRACTION = 0.02
+#: The guard also covers this many time constants of the loop's slowest pole (the friction
+#: disturbance at a reversal decays with it: 0.5 s for pid-low's -6 rad/s), see
+#: :func:`friction_guard_for`.
+GUARD_TIME_CONSTANTS = 3.0
 #: Steiglitz-McBride iterations (stops earlier when the denominator settles).
 SM_ITERATIONS = 20
 #: Largest pole radius of the discrete model; reflected poles are pulled inside it.
@@ -226,6 +230,12 @@ def active_span(X: np.ndarray) -> tuple[int, int] | None:
     if moving.size == 0:
         return None
     return int(moving[0]), int(moving[-1]) + 2
+
+
+def friction_guard_for(poles: np.ndarray) -> float:
+    """Guard time (s) after rests and reversals for a loop with these (continuous) poles."""
+    slowest = np.min(np.abs(np.asarray(poles).real))
+    return float(max(FRICTION_GUARD, GUARD_TIME_CONSTANTS / slowest)) if slowest > 0 else FRICTION_GUARD
 
 
 def linear_regime(X: np.ndarray, ts: float, guard: float = FRICTION_GUARD) -> np.ndarray:
