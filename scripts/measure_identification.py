@@ -80,7 +80,9 @@ def main() -> None:
         line = [f"{name:7s}"]
         for label, mods in models.items():
             ep = predict_tracking(traj.t, traj.q, mods)(traj.t)
-            pct = 100 * np.abs(ep - e).max(axis=0) / np.where(peak > 0, peak, np.nan)
+            # An axis whose error stays below 0.1 um / 0.1 urad barely moves on this path: "-".
+            moving = peak > np.array([1e-4] * 3 + [1e-7] * 2)
+            pct = 100 * np.abs(ep - e).max(axis=0) / np.where(moving, peak, np.nan)
             line.append(f"{label} " + " ".join("  -  " if not np.isfinite(p) else f"{p:5.1f}"
                                                 for p in pct))
         print(" | ".join(line), " (max|e| um/mrad " + " ".join(f"{1e3 * p:.1f}" for p in peak) + ")")
