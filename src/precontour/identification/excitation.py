@@ -1,11 +1,13 @@
 """Identification motion: a safe excitation of each axis, then of all axes together.
 
 Per axis: jerk-limited steps of several sizes with settling dwells, reversals at three speeds
-(friction on both sides of zero speed), and a windowed multi-sine (Schroeder phases, 0.5 to
-80 Hz) scaled so that its velocity, acceleration and jerk stay within a fraction ``safety``
-of the drive's limits. One axis at a time (the others at rest), then the multi-sines of all
-five axes at once (interleaved frequency grids, so that the axes stay uncorrelated). Moves
-stay within +-``travel`` of the start (and within the A axis's travel, if the machine has one).
+(friction on both sides of zero speed), and passes back and forth at a drift speed with a
+multi-sine on it (Schroeder phases, 0.5 to 80 Hz; the speed stays away from zero within a pass,
+so friction stays at its Coulomb level and the loop in its linear regime). Velocity,
+acceleration and jerk stay within a fraction ``safety`` of the drive's limits. One axis at a
+time (the others at rest), then the drift multi-sines of all five axes at once (interleaved
+frequency grids, so that the axes stay uncorrelated). Moves stay within +-``travel`` of the
+start (and within the A axis's travel, if the machine has one).
 """
 
 from __future__ import annotations

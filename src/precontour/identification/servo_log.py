@@ -300,8 +300,9 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
             current[axis] = data[f"I_{axis}"]
             _check_saturation(current[axis], source, f"I_{axis}", row_of)
     if not command:
-        raise InputError("no axis in the log: need at least one pair of columns X, X_act (or "
-                         "Y, Z, A, C)", source=source)
+        raise InputError(f"no axis in the log: need at least one pair of columns X, X_act (or "
+                         f"Y, Z, A, C); found {', '.join(data) or 'none'} (name them with "
+                         "--columns)", source=source)
     return ServoLog(source=source, t=t, command=MappingProxyType(command),
                     actual=MappingProxyType(actual), current=MappingProxyType(current))
 
