@@ -28,7 +28,7 @@ MULTISINE_BAND = (0.5, 80.0)
 MULTISINE_COMPONENTS = 24
 #: Drift passes per multi-sine, each this long, s; the ripple's speed is below RIPPLE x drift.
 PASSES = 4
-PASS_DURATION = 1.25
+PASS_DURATION = 2.5
 RIPPLE = 0.7
 #: Settling dwell after each step, s.
 STEP_DWELL = 0.15

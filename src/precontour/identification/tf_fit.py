@@ -32,7 +32,7 @@ AUTO_ORDERS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
 #: best, or within AUTO_ORDER_FLOOR_PCT (percentage points of max|e|) of it: smaller gains are
 #: below what a log can tell apart.
 AUTO_ORDER_SLACK = 1.25
-AUTO_ORDER_FLOOR_PCT = 0.1
+AUTO_ORDER_FLOOR_PCT = 0.01
 #: Fraction of an axis's active span (first to last commanded move) held out for validation.
 HOLDOUT_FRACTION = 0.25
 #: Samples within this time (s) after the command rests or reverses are left out of the cost:
@@ -41,9 +41,9 @@ HOLDOUT_FRACTION = 0.25
 FRICTION_GUARD = 0.1
 LOW_SPEED_FRACTION = 0.02
 #: The guard also covers this many time constants of the loop's slowest pole (the friction
-#: disturbance at a reversal decays with it: 0.5 s for pid-low's -6 rad/s), see
+#: disturbance at a reversal decays with it: 0.8 s for pid-low's -6 rad/s), see
 #: :func:`friction_guard_for`.
-GUARD_TIME_CONSTANTS = 3.0
+GUARD_TIME_CONSTANTS = 5.0
 #: Steiglitz-McBride iterations (stops earlier when the denominator settles).
 SM_ITERATIONS = 20
 #: Largest pole radius of the discrete model; reflected poles are pulled inside it.
