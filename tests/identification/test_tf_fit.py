@@ -66,8 +66,8 @@ def test_recovers_the_exact_sampled_pid_loop(machine):
 
 def test_continuous_model_predicts_the_discrete_machine_on_a_new_path(machine):
     """Identified on the excitation, evaluated by the closed-form predictor on the paper path
-    (not in the log): within 2.5 % of max|e| (measured 1.9 %; the predictor's own spline
-    fit accounts for about 1 %) of the discrete virtual machine (no friction); the
+    (not in the log): within 2.5 % of max|e| (the predictor's own spline fit accounts for
+    about 1 %) of the discrete virtual machine (no friction); the
     continuous PID model, which ignores the sampling, is off by more."""
     log, _ = make_log(machine, machine, ("X",), travel=SHORT_TRAVEL)
     fit = identify_axis("X", log.command["X"], log.actual["X"], log.period, friction_guard=0)
@@ -103,8 +103,8 @@ def test_quantized_and_noisy_encoder(machine, noise):
 def test_hidden_plant_with_friction_beats_the_nominal_model(machine):
     """The realistic machine (friction, friction feed-forward) with J, B 25 % off: identified
     from the excitation, the model predicts the paper path's X error within 12 % of max|e|
-    (measured 9.9 %, as close as the plant's own linear model gets: friction at the path's
-    reversals is the rest), the nominal model is off by 1.5 times that or more (20 %)."""
+    (as close as the plant's own linear model gets, 9.8 %: friction at the path's reversals
+    is the rest), the nominal model is off by 1.5 times that or more (20 %)."""
     plant = hidden_plant(machine)
     log, _ = make_log(machine, plant, ("X",), friction=True)
     fit = identify_axis("X", log.command["X"], log.actual["X"], log.period)
