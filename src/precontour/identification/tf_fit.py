@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, optimize, signal
+from scipy import optimize, signal
 
 #: Orders tried by ``order="auto"``.
 AUTO_ORDERS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
