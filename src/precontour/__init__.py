@@ -9,6 +9,7 @@ stages before it::
     prediction/    minimum-jerk spline fit, closed-form tracking error, contour errors
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
+    identification/ drive models from servo logs, the excitation motion
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
     tables.py      checked CSV / .npz / .parquet in and out
     cli.py         the ``precontour`` command

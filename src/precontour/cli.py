@@ -26,13 +26,18 @@ from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_T
 from .compensation.stops import DEFAULT_LEARNING_PASSES
 from .prediction.contour import ReferencePath, contour_errors
 from .errors import NOTICES, InputError, PrecontourError
-from .files import Terminated, input_files, sigterm_as_exception
+from .files import (Terminated, check_outputs, check_report_folder, input_files,
+                    sigterm_as_exception)
 from .trajectory.feedplan import DEFAULT_FEED
 from .machine.machine_file import load_machine
 from .simulation.virtual_machine import simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
 from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference, read_trajectory,
-                     trajectory_columns, write_columns)
+                     trajectory_columns, write_columns, write_text)
+from .identification import (FORMATS as LOG_FORMATS, excitation_trajectory, identify,
+                             read_servo_log, write_excitation)
+from .identification.excitation import DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR, DEFAULT_TRAVEL_ROTARY
+from .machine.machine_file import machine_data
 from .toolpath import read_program, read_toolpath, toolpath_format
 from .prediction.tracking import predict_tracking
 from .trajectory.generate import (DEFAULT_DWELL, default_max_samples, generate_trajectory,
@@ -254,6 +259,65 @@ def build_parser() -> argparse.ArgumentParser:
                          help="largest number of contour compensation passes (default 1; the "
                               "tracking baseline is always the paper's single pass)")
     compare.set_defaults(run=run_compare)
+
+    ident = commands.add_parser(
+        "identify", help="identify the drives' closed loops from a servo log, write a machine file",
+        description="Read a servo log (commanded and actual axis positions at the servo rate, "
+                    "optionally motor currents I_X..I_C), identify each moving axis's closed "
+                    "loop x/X (output-error least squares, stable, order chosen on a held-out "
+                    "part) and, with currents, the drives' J, B and friction; write the base "
+                    "machine plus a controller of type tf.")
+    ident.add_argument("log", type=Path,
+                       help="servo log: .csv/.npz/.parquet with t,X..C,X_act..C_act[,I_X..I_C], "
+                            "LinuxCNC halsampler output, or a halscope log")
+    ident.add_argument("--machine", default="zhang2013",
+                       help="base machine: built-in name or machine TOML file (default: zhang2013)")
+    ident.add_argument("-o", "--output", type=Path, required=True,
+                       help="identified machine file (.toml)")
+    ident.add_argument("--name", default="identified",
+                       help="name of the identified controller (default: identified)")
+    ident.add_argument("--order", default="auto", metavar="auto|N",
+                       help="model order per axis: auto (default) or a number")
+    ident.add_argument("--report", type=Path, metavar="DIR",
+                       help="also write figures (Bode, residuals) and index.html to DIR")
+    ident.add_argument("--format", choices=LOG_FORMATS, default=None,
+                       help="log format (default: by suffix; text files: halscope if the first "
+                            "line says 'Sampling period is', else halsampler)")
+    ident.add_argument("--columns", metavar="NAMES",
+                       help="comma-separated names of the log's columns in order (halsampler, or "
+                            "halscope channels): t, n (sample number), X..C, X_act..C_act, "
+                            "I_X..I_C; empty to skip")
+    ident.add_argument("--period", type=_positive_float, metavar="S",
+                       help="sample period in s for logs without a t column (default: the "
+                            "machine's servo period; halscope logs give theirs)")
+    ident.add_argument("--angles", choices=("rad", "deg"), default="rad",
+                       help="unit of A and C in the log (default rad; LinuxCNC uses deg)")
+    ident.add_argument("--base-controller", metavar="NAME",
+                       help="base controller kept for axes the log cannot identify (default: "
+                            "the machine's first linear controller)")
+    ident.set_defaults(run=run_identify)
+
+    excite = commands.add_parser(
+        "excite", help="write a safe identification motion to record a servo log with",
+        description="Per axis: jerk-limited steps, reversals at three speeds and a multi-sine "
+                    "riding on a drift speed; one axis at a time, then all together; within "
+                    "a fraction of the machine's velocity, acceleration and jerk limits.")
+    excite.add_argument("--machine", default="zhang2013",
+                        help="built-in machine name or machine TOML file (default: zhang2013)")
+    excite.add_argument("-o", "--output", type=Path, required=True,
+                        help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C), or .ngc / .txt "
+                             "(G-code / halstreamer, needs precontour.toolpath.writers)")
+    excite.add_argument("--safety", type=_positive_float, default=DEFAULT_SAFETY, metavar="F",
+                        help=f"fraction of v_max, a_max, j_max used (default {DEFAULT_SAFETY:g})")
+    excite.add_argument("--travel-linear", type=_positive_float, default=DEFAULT_TRAVEL_LINEAR,
+                        metavar="MM", help="half travel of X, Y, Z around the start (default "
+                                           f"{DEFAULT_TRAVEL_LINEAR:g} mm)")
+    excite.add_argument("--travel-rotary", type=_positive_float, default=DEFAULT_TRAVEL_ROTARY,
+                        metavar="RAD", help="half travel of A, C around the start (default "
+                                            f"{DEFAULT_TRAVEL_ROTARY:g} rad)")
+    excite.add_argument("--axes", default="XYZAC", metavar="AXES",
+                        help="axes to excite (default XYZAC)")
+    excite.set_defaults(run=run_excite)
     return parser
 
 
@@ -519,6 +583,75 @@ def virtual_machine_actual(t: np.ndarray, machine, controller: str):
         return simulate(t, q, machine, controller, mode="discrete", friction=True,
                         ff_friction=True).q_act
     return actual
+
+
+def run_identify(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    inputs = input_files(args.log, args.machine)
+    check_outputs([args.output], inputs)
+    if args.report is not None:
+        check_report_folder(args.report, (), inputs, what="identification report")
+    base = load_machine(args.machine)
+    data, _ = machine_data(args.machine)
+    columns = None if args.columns is None else args.columns.split(",")
+    log = read_servo_log(args.log, fmt=args.format, columns=columns,
+                         period=args.period, default_period=base.servo_period,
+                         angle_scale=np.pi / 180 if args.angles == "deg" else 1.0)
+    result = identify(log, base, data, name=args.name, order=args.order,
+                      base_controller=args.base_controller)
+    write_text(args.output, result.text, inputs=inputs)
+    print(f"identified {len(result.axes)} axis/axes of {base.name} from {args.log} "
+          f"({log.n_samples} samples, {log.period * 1e3:.6g} ms); base controller "
+          f"{result.base_controller.name}")
+    print(format_identification_table(result))
+    for note in result.notes.values():
+        print(note)
+    if args.report is not None:
+        from .reports.identify_report import write_identify_report
+        index = write_identify_report(result, args.report)
+        print(f"report: {index}")
+    print(f"wrote {args.output} (controller {args.name!r}, type tf) in "
+          f"{time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def format_identification_table(result) -> str:
+    """The printed per-axis table of an identification."""
+    lines = ["axis  order  fit % max|e|  held-out %   bandwidth Hz (base)  slowest pole rad/s (base)"]
+    for row in result.summary_rows():
+        slow = row["poles"][np.argmax(row["poles"].real)]
+        base_slow = row["base_poles"][np.argmax(row["base_poles"].real)]
+        if row["identified"]:
+            head = f"{row['axis']:>4}  {row['order']:5d}  {row['fit_pct']:12.2f}  {row['holdout_pct']:10.2f}"
+        else:
+            head = f"{row['axis']:>4}  {'base':>5}  {'-':>12}  {'-':>10}"
+        lines.append(f"{head}   {row['bw']:7.2f} ({row['base_bw']:6.2f})   "
+                     f"{slow:.4g} ({base_slow:.4g})")
+    for axis, p in result.physical.items():
+        drive = result.base.drive(axis)
+        lines.append(f"{axis}: J {p.J:.4g} kg m^2 (base {drive.J:.4g}), B {p.B:.4g} kg m^2/s "
+                     f"(base {drive.B:.4g}), torque fit {p.torque_fit_pct:.2f} % over "
+                     f"{p.windows} windows")
+    return "\n".join(lines)
+
+
+def run_excite(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    check_outputs([args.output], input_files(args.machine))
+    machine = load_machine(args.machine)
+    axes = tuple(dict.fromkeys(args.axes.upper()))
+    unknown = [a for a in axes if a not in AXES]
+    if unknown or not axes:
+        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
+                         field="axes")
+    travel = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
+    traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
+    write_excitation(args.output, traj, machine)
+    print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
+          f"axes {''.join(axes)} one at a time then together, within {args.safety:g} of the "
+          "drive limits")
+    print(f"wrote {args.output} in {time.perf_counter() - start:.2f} s")
+    return 0
 
 
 def _contour_line(errors) -> str:

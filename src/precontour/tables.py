@@ -246,6 +246,12 @@ def check_output_table(path: str | Path, inputs: Iterable[str | Path] = ()) -> P
     return path
 
 
+def write_text(path: str | Path, text: str, *, inputs: Iterable[str | Path] = ()) -> Path:
+    """Write a text file (e.g. a machine file) atomically (:func:`precontour.files.atomic_write`);
+    never over an input."""
+    return atomic_write(path, text.encode("utf-8"), inputs=inputs)
+
+
 def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:
     import pyarrow as pa
     import pyarrow.csv as pacsv

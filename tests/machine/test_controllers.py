@@ -251,7 +251,7 @@ def test_predictor_refuses_smc():
     assert not smc.is_linear
     assert not hasattr(smc.axes[0], "error_model")
     msg = (r"controller 'smc' \(type 'smc'\) is nonlinear; the closed-form predictor needs a "
-           r"linear controller \(type pid, p-pi\)")
+           r"linear controller \(type pid, p-pi, tf\)")
     with pytest.raises(UnsupportedControllerError, match=msg):
         smc.error_models(MACHINE.drives)
     t = np.arange(50) * TS

@@ -188,3 +188,50 @@ def test_linuxcnc_demo_programs_fit_the_travel(name, tilt_deg, c_deg):
                                          rotary[None, :, 1])
     for i, drive in enumerate(machine.drives[:3]):
         assert drive.p_min < xyz[..., i].min() and xyz[..., i].max() < drive.p_max
+
+
+def test_machine_file_text_round_trips_the_builtin_machine():
+    from precontour.machine.machine_file import machine_data, machine_file_text
+
+    data, _ = machine_data("zhang2013")
+    again = parse_machine(machine_file_text(data, "a header\nof two lines"))
+    original = load_machine("zhang2013")
+    assert again.drives == original.drives
+    assert again.kinematics == original.kinematics
+    assert dict(again.controllers) == dict(original.controllers)
+
+
+TF_MACHINE = """
+[controllers.fit]
+type = "tf"
+X = {{ num = {num}, den = {den} }}
+Y = {{ num = [1.0], den = [0.01, 1.0] }}
+Z = {{ num = [1.0], den = [0.01, 1.0] }}
+A = {{ num = [1.0], den = [0.01, 1.0] }}
+C = {{ num = [1.0], den = [0.01, 1.0] }}
+"""
+
+
+def _tf_machine(num, den):
+    from precontour.machine.machine_file import builtin_machine_text
+
+    return parse_machine(builtin_machine_text() + TF_MACHINE.format(num=num, den=den))
+
+
+def test_tf_controller_error_model_is_one_minus_the_loop():
+    machine = _tf_machine("[300.0, 20000.0]", "[1.0, 300.0, 20000.0]")
+    model = machine.controller("fit").error_models(machine.drives)[0]
+    np.testing.assert_allclose(model.num, [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(model.den, [1.0, 300.0, 20000.0])
+
+
+@pytest.mark.parametrize("num, den, message", [
+    ("[1.0, 2.0, 3.0]", "[1.0, 3.0]", "must be proper"),
+    ("[1.0]", "[1.0, -3.0]", "not stable"),
+    ("[1.0]", "[0.0, 0.0]", "degree >= 1"),
+    ("[1.0]", "[1.0]", "at least 2"),
+    ("[\"a\"]", "[1.0, 3.0]", "finite numbers"),
+])
+def test_tf_controller_errors_name_the_key(num, den, message):
+    with pytest.raises(MachineFileError, match=rf"\[controllers\.fit\.X\] (num|den): .*{message}"):
+        _tf_machine(num, den)

@@ -542,3 +542,35 @@ def test_smc_adaptation_reduces_model_mismatch_error():
         b = simulate(T_LONG, Q_LONG, MACHINE, "smc", mode=mode, **kw).max_abs_error
         # Measured ratios 0.07-0.66 (X least: its error is already small) in both modes.
         assert np.all(a < 0.95 * b), (mode, a / b)
+
+
+def test_tf_controller_runs_its_closed_loop(machine):
+    """A ``tf`` controller holding pid-high's continuous closed loops: in continuous mode the
+    virtual machine (lsim of x/X on the quintic command) matches the PID law integrated by RK4
+    (no friction) to 0.1 % of max|e|; in discrete mode it is the Tustin discretization
+    (scipy.signal.dlsim of cont2discrete 'bilinear')."""
+    import dataclasses
+
+    import scipy.signal as sig
+
+    from precontour.machine.controllers import Controller, TransferFunction
+
+    pid = machine.controller("pid-high")
+    axes = []
+    for model in pid.error_models(machine.drives):
+        axes.append(TransferFunction(num=tuple(np.polysub(model.den, model.num)), den=tuple(model.den)))
+    tf = Controller(name="tf-pid", type="tf", axes=tuple(axes))
+    tmachine = dataclasses.replace(machine, controllers={**machine.controllers, "tf-pid": tf})
+    t = np.arange(1500) * 1e-3
+    q = np.stack([10 * smoothstep7(t / 1.2) * (i + 1) for i in range(5)], axis=1)
+    ref = simulate(t, q, machine, "pid-high", mode="continuous", friction=False, ff_friction=False)
+    got = simulate(t, q, tmachine, "tf-pid", mode="continuous")
+    assert got.settings["closed_loop_model"]
+    for i in range(5):
+        peak = np.abs(ref.e[:, i]).max()
+        assert np.abs(got.e[:, i] - ref.e[:, i]).max() < 1e-3 * peak
+    disc = simulate(t, q, tmachine, "tf-pid", mode="discrete")
+    num_d, den_d, _ = sig.cont2discrete((np.asarray(axes[2].num), np.asarray(axes[2].den)), 1e-3,
+                                        method="bilinear")
+    _, y = sig.dlsim((np.ravel(num_d), den_d, 1e-3), q[:, 2] - q[0, 2])
+    np.testing.assert_allclose(disc.q_act[:, 2], y[:, 0] + q[0, 2], atol=1e-9)

@@ -67,6 +67,18 @@ class ConfigTable:
             raise self.error(key, "must be nonzero")
         return value
 
+    def get_float_list(self, key: str, *, min_length: int = 1) -> list[float]:
+        """A required non-empty list of finite numbers."""
+        value = self._get(key, _REQUIRED)
+        if not isinstance(value, list) or len(value) < min_length:
+            raise self.error(key, f"must be a list of at least {min_length} number(s), got {value!r}")
+        out = []
+        for item in value:
+            if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
+                raise self.error(key, f"must hold finite numbers, got {item!r}")
+            out.append(float(item))
+        return out
+
     def get_str(self, key: str, default: Any = None, *, choices: tuple[str, ...] | None = None
                 ) -> str:
         value = self._get(key, _REQUIRED if default is None else default)

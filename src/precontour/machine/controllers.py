@@ -2,7 +2,8 @@
 
 A :class:`Controller` is a named set of five per-axis controllers of one ``type``. Each
 controller type registers a parser in :data:`CONTROLLER_TYPES`; linear types (``pid``,
-``p-pi``) also give a :class:`~precontour.machine.drives.LinearErrorModel` per axis for the closed-form
+``p-pi``, and ``tf``, a closed loop given as its transfer function) also give a
+:class:`~precontour.machine.drives.LinearErrorModel` per axis for the closed-form
 predictor, while the nonlinear sliding-mode controller (``smc``) is only simulated
 (:mod:`precontour.simulation.control_laws`). :func:`design_p_pi` and :func:`design_smc` reproduce the
 gains shipped with the built-in machine.
@@ -34,6 +35,9 @@ smc    gamma_J adaptation rate of the inertia estimate, kg m^2 s^2/rad^2 (defaul
                as published)
 smc    gamma_B adaptation rate of the damping estimate, kg m^2 s/rad^2 (default 0,
                as published)
+tf     num     closed-loop x/X numerator in s, highest power first (list)
+tf     den     closed-loop x/X denominator in s, highest power first (list); the
+               model must be proper and stable (identified by ``precontour identify``)
 ====== ======= =================================================================
 """
 
@@ -187,6 +191,39 @@ class SMCGains:
 
 
 @dataclass(frozen=True)
+class TransferFunction:
+    """A closed loop given directly as its transfer function x(s)/X(s) = num(s)/den(s).
+
+    Continuous time, coefficients highest power first; proper (deg num <= deg den) and stable.
+    This is what identification from a servo log gives (:mod:`precontour.identification`): the
+    loop as a whole, whatever the controller inside. The error model is e/X = 1 - x/X.
+    """
+
+    num: tuple
+    den: tuple
+
+    def error_model(self, drive: Drive) -> LinearErrorModel:
+        num, den = np.asarray(self.num, float), np.asarray(self.den, float)
+        return LinearErrorModel(num=np.polysub(den, num), den=den, axis=drive.axis)
+
+    @classmethod
+    def from_table(cls, table: ConfigTable) -> "TransferFunction":
+        num = np.trim_zeros(np.array(table.get_float_list("num")), "f")
+        den = np.trim_zeros(np.array(table.get_float_list("den", min_length=2)), "f")
+        if den.size < 2:
+            raise table.error("den", "must have degree >= 1 (a nonzero leading coefficient)")
+        if num.size > den.size:
+            raise table.error("num", f"degree {num.size - 1} exceeds the denominator's "
+                                     f"{den.size - 1}: the model must be proper")
+        poles = np.roots(den)
+        if np.any(poles.real >= 0):
+            worst = poles[np.argmax(poles.real)]
+            raise table.error("den", f"the closed loop is not stable (pole at {worst:.6g} rad/s)")
+        table.finish()
+        return cls(num=tuple(num.tolist()), den=tuple(den.tolist()))
+
+
+@dataclass(frozen=True)
 class Controller:
     """A named controller set: one per-axis controller for each of X, Y, Z, A, C."""
 
@@ -238,6 +275,7 @@ CONTROLLER_TYPES: dict[str, Callable[..., Controller]] = {
     "pid": _PerAxisParser(PIDGains),
     "p-pi": _PerAxisParser(PPIGains),
     "smc": _PerAxisParser(SMCGains),
+    "tf": _PerAxisParser(TransferFunction),
 }
 
 

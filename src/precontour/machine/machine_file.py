@@ -89,6 +89,79 @@ def load_machine(spec: str | Path) -> Machine:
     return parse_machine(text, source=spec_str)
 
 
+def machine_data(spec: str | Path) -> tuple[dict, str]:
+    """The raw TOML data of a built-in machine or machine file, and its source name.
+
+    Use it to derive a machine file (change tables, then :func:`machine_file_text`); check the
+    result with :func:`parse_machine`.
+    """
+    spec_str = str(spec)
+    if spec_str in BUILTIN_MACHINES:
+        text, source = builtin_machine_text(spec_str), f"<built-in machine {spec_str}>"
+    else:
+        path = Path(spec_str)
+        if not path.is_file():
+            raise MachineFileError("no such machine file, and not a built-in machine "
+                                   f"({', '.join(BUILTIN_MACHINES)})", source=spec_str)
+        try:
+            text, source = path.read_text(), spec_str
+        except (OSError, UnicodeDecodeError) as exc:
+            raise MachineFileError(f"cannot read machine file: {exc}", source=spec_str) from None
+    try:
+        return tomllib.loads(text), source
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineFileError(f"malformed TOML: {exc}", source=source) from None
+
+
+def machine_file_text(data: dict, header: str = "") -> str:
+    """TOML text of machine data (the inverse of ``tomllib.loads`` for what a machine file
+    holds: tables, strings, numbers, booleans, lists of numbers). Tables whose values are all
+    plain become inline tables (per-axis gains, friction); floats keep full precision."""
+    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    _write_table(lines, [], data)
+    return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def _is_plain(value) -> bool:
+    return not isinstance(value, dict) or all(not isinstance(v, dict) for v in value.values())
+
+
+def _toml_key(key: str) -> str:
+    bare = key and all(c.isalnum() and c.isascii() or c in "-_" for c in key)
+    return key if bare else _toml_value(key)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        text = repr(value)
+        return {"inf": "inf", "-inf": "-inf", "nan": "nan"}.get(text, text)
+    if isinstance(value, str):
+        escaped = value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+        return f'"{escaped}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def _write_table(lines: list[str], path: list[str], table: dict) -> None:
+    # Top-level tables ([kinematics], [drives], ...) are always sections.
+    plain = {k: v for k, v in table.items() if _is_plain(v) and (path or not isinstance(v, dict))}
+    nested = {k: v for k, v in table.items() if k not in plain}
+    if path and plain:
+        lines.append("")
+        lines.append("[" + ".".join(_toml_key(p) for p in path) + "]")
+    for key, value in plain.items():
+        lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
+    for key, value in nested.items():
+        _write_table(lines, path + [key], value)
+
+
 def builtin_machine_text(name: str = "zhang2013") -> str:
     """TOML text of a built-in machine: a template for writing your own machine file."""
     if name not in BUILTIN_MACHINES:

@@ -32,6 +32,7 @@ from scipy.interpolate import make_interp_spline
 
 from .control_laws import (LAWS, N_DISCRETE_STATES, LawParameters, continuous_derivative,
                            continuous_output, discrete_step, law_reset)
+from .closed_loop import CLOSED_LOOP_TYPES, simulate_closed_loop
 from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError, plain
@@ -274,6 +275,15 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
                     inertia_scale=inertia_scale, damping_scale=damping_scale,
                     encoder_resolution=None if resolution is None else resolution.copy(),
                     substeps=substeps, sample_period=ts)
+
+    if controller.type in CLOSED_LOOP_TYPES:
+        # The whole loop is given as x/X (closed_loop.py): no plant, friction or control law.
+        q_act = simulate_closed_loop(t, q, controller, mode, ts, substeps)
+        rg = np.array([d.rg for d in machine.drives])
+        w = np.gradient(q_act, ts, axis=0) / rg
+        settings.update(closed_loop_model=True)
+        return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=np.full_like(q, np.nan), w=w,
+                                mode=mode, controller=controller.name, settings=settings)
 
     packer = LAWS.get(controller.type)
     if packer is None:

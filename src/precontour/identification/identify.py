@@ -1,0 +1,167 @@
+"""From a servo log and a base machine to an identified machine file.
+
+Each axis in the log that moves gets its closed loop x/X (:mod:`.tf_fit`), written as one
+axis of a controller of type ``tf``; an axis that never moves (or is not in the log) keeps the
+base controller's closed loop, with a one-line note saying so. When the log has motor currents,
+the drive's J, B and friction (:mod:`.physical`) replace the base machine's in the drive table.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine.controllers import Controller, closed_loop_bandwidth
+from ..machine.drives import AXES, LinearErrorModel
+from ..machine.machine_file import Machine, machine_file_text, parse_machine
+from .physical import PhysicalParameters, identify_physical
+from .servo_log import ServoLog
+from .tf_fit import AxisIdentification, NotIdentifiable, friction_guard_for, identify_axis
+
+#: Largest order accepted by ``order=N``.
+MAX_ORDER = 10
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """What :func:`identify` found; ``machine`` is the identified machine, ``text`` its file."""
+
+    log: ServoLog
+    base: Machine
+    base_controller: Controller
+    name: str
+    axes: dict
+    notes: dict
+    physical: dict
+    machine: Machine
+    text: str
+    base_models: tuple = field(default=())
+
+    def identified_models(self) -> tuple[LinearErrorModel, ...]:
+        return self.machine.controller(self.name).error_models(self.machine.drives)
+
+    def summary_rows(self) -> list[dict]:
+        """Per axis: order, fit %, held-out %, bandwidths (Hz), poles (rad/s)."""
+        rows = []
+        models = self.identified_models()
+        for i, axis in enumerate(AXES):
+            base = self.base_models[i]
+            row = dict(axis=axis, identified=axis in self.axes, base_bw=_bandwidth(base),
+                       base_poles=base.poles, bw=_bandwidth(models[i]), poles=models[i].poles)
+            if axis in self.axes:
+                fit: AxisIdentification = self.axes[axis]
+                row.update(order=fit.order, fit_pct=fit.fit_pct, holdout_pct=fit.holdout_pct)
+            rows.append(row)
+        return rows
+
+
+def _bandwidth(model: LinearErrorModel) -> float:
+    try:
+        return closed_loop_bandwidth(model)
+    except Exception:  # a closed loop that never falls below -3 dB: report it as unknown
+        return float("nan")
+
+
+def parse_order(order) -> int | str:
+    if order in (None, "auto"):
+        return "auto"
+    try:
+        value = int(order)
+    except (TypeError, ValueError):
+        raise InputError(f"must be 'auto' or a whole number 1..{MAX_ORDER}, got {order!r}",
+                         field="order") from None
+    if not 1 <= value <= MAX_ORDER:
+        raise InputError(f"must be 'auto' or a whole number 1..{MAX_ORDER}, got {order!r}",
+                         field="order")
+    return value
+
+
+def default_base_controller(machine: Machine) -> Controller:
+    """The first linear controller of the machine (the one the log was recorded with, usually)."""
+    for controller in machine.controllers.values():
+        if controller.is_linear:
+            return controller
+    raise InputError("the base machine has no linear controller to keep for axes the log "
+                     "cannot identify", source=machine.source)
+
+
+def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "identified",
+             order="auto", base_controller: str | None = None) -> IdentificationResult:
+    """Identify every moving axis of ``log``; build the machine file text and parse it back.
+
+    ``base_data`` is the base machine's raw TOML data (:func:`~precontour.machine.machine_file.machine_data`).
+    """
+    order = parse_order(order)
+    if not name or not all(c.isalnum() or c in "-_" for c in name):
+        raise InputError(f"controller name must be letters, digits, '-' or '_', got {name!r}",
+                         field="name")
+    ctrl = default_base_controller(base) if base_controller is None else base.controller(base_controller)
+    base_models = ctrl.error_models(base.drives)
+    ts = log.period
+    if abs(ts - base.servo_period) > 1e-6 * base.servo_period:
+        # Not an error: the model is continuous; say it in the notes.
+        period_note = (f"log sample period {ts * 1e3:.6g} ms differs from the machine's servo "
+                       f"period {base.servo_period * 1e3:.6g} ms")
+    else:
+        period_note = None
+    fits: dict[str, AxisIdentification] = {}
+    notes: dict[str, str] = {}
+    physical: dict[str, PhysicalParameters] = {}
+    for axis in AXES:
+        if axis not in log.command:
+            notes[axis] = f"axis {axis}: not in the log; kept the base model ({ctrl.name})"
+            continue
+        X, x = log.command[axis], log.actual[axis]
+        try:
+            # The base loop's slowest pole sets how long friction transients are left out.
+            guard = friction_guard_for(base_models[AXES.index(axis)].poles)
+            fits[axis] = identify_axis(axis, X, x, ts, order=order, friction_guard=guard)
+        except NotIdentifiable as exc:
+            notes[axis] = f"{exc}; kept the base model ({ctrl.name})"
+            continue
+        if axis in log.current:
+            found = identify_physical(base.drive(axis), x, log.current[axis], ts)
+            if found is None:
+                notes[axis] = (f"axis {axis}: too little motion at speed to identify J, B and "
+                               "friction from the currents; kept the base drive")
+            else:
+                physical[axis] = found
+    if not fits:
+        raise InputError("no axis of the log can be identified: " + "; ".join(
+            notes[a] for a in AXES if a in notes), source=log.source)
+    if period_note:
+        notes["period"] = period_note
+
+    data = copy.deepcopy(base_data)
+    table = {"type": "tf"}
+    for i, axis in enumerate(AXES):
+        if axis in fits:
+            num, den = fits[axis].num, fits[axis].den
+        else:
+            den = base_models[i].den / base_models[i].den[0]
+            num = np.polysub(base_models[i].den, base_models[i].num) / base_models[i].den[0]
+            num = np.trim_zeros(num, "f")
+        table[axis] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
+    controllers = data.setdefault("controllers", {})
+    if name in controllers:
+        notes["name"] = f"controller {name!r} of the base machine replaced"
+    controllers[name] = table
+    for axis, p in physical.items():
+        drive = data["drives"][axis]
+        drive["J"], drive["B"] = p.J, p.B
+        if p.friction is not None:
+            drive["friction"] = {k: float(getattr(p.friction, k)) for k in (
+                "Ts_pos", "W1_pos", "Tc_pos", "W2_pos", "Ts_neg", "W1_neg", "Tc_neg", "W2_neg")}
+    header = (f"Machine {base.name} with controller {name!r} identified from the servo log "
+              f"{log.source}\n({log.n_samples} samples at {ts * 1e3:.6g} ms) by precontour "
+              "identify: x/X per axis, continuous time, highest power first.")
+    if physical:
+        header += f"\nDrives {', '.join(physical)}: J, B and friction identified from motor currents."
+    text = machine_file_text(data, header)
+    machine = parse_machine(text, source="<identified machine>")
+    return IdentificationResult(log=log, base=base, base_controller=ctrl, name=name, axes=fits,
+                                notes=notes, physical=physical, machine=machine, text=text,
+                                base_models=base_models)

@@ -1,0 +1,323 @@
+"""Servo logs in: commanded and actual axis positions (and motor currents) at the servo rate.
+
+Formats (picked by ``fmt`` or the file's suffix):
+
+* ``table``: CSV / ``.npz`` / ``.parquet`` with columns ``t``, ``X..C`` (commanded), ``X_act..C_act``
+  (measured) and optionally ``I_X..I_C`` (motor current, A); mm, rad, s.
+* ``halsampler``: LinuxCNC halsampler(1) output, one line per sample, values in pin order
+  separated by blanks; ``columns`` names them (``n`` for the sample number that ``-t`` prints,
+  empty names skip a pin); ``overrun`` lines (lost samples) are errors. Without a ``t`` column
+  the time is the sample number (or line) times ``period``.
+* ``halscope``: a log saved by LinuxCNC halscope: the line ``Sampling period is N ns``
+  (``# Sampling period is N ns`` since LinuxCNC 2.10), then either ``label;label;...`` and rows
+  ``value;value;...`` (2.10), or rows of ``label value`` pairs (before 2.10; that writer emits
+  one row past the capture, which is dropped). Channels are named by their labels, or by
+  ``columns`` in channel order.
+
+An axis may be absent (neither its command nor its actual); one with only one of the two is an
+error. Every problem is an :class:`~precontour.errors.InputError` naming the file, row and
+field: non-numeric, NaN or infinite values, gaps, non-uniform or non-increasing time, and
+saturated currents (a current column held at its extreme value for :data:`SATURATION_RUN` or
+more samples, as an amplifier at its current limit does).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine.drives import AXES
+from ..tables import SUPPORTED_SUFFIXES, read_columns
+from ..trajectory.sampled import check_uniform_time
+
+FORMATS: tuple[str, ...] = ("table", "halsampler", "halscope")
+COMMAND_COLUMNS: tuple[str, ...] = AXES
+ACTUAL_COLUMNS: tuple[str, ...] = tuple(f"{a}_act" for a in AXES)
+CURRENT_COLUMNS: tuple[str, ...] = tuple(f"I_{a}" for a in AXES)
+#: Consecutive samples at a current column's extreme value that count as saturation.
+SATURATION_RUN = 3
+#: A time step longer than this many typical steps is a gap (lost samples).
+GAP_FACTOR = 1.5
+#: Fewest samples a log needs.
+MIN_SAMPLES = 20
+
+_PERIOD = re.compile(r"^\s*#?\s*Sampling period is\s+(\S+)\s*ns", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class ServoLog:
+    """A checked servo log. Per-axis arrays are keyed by axis name (only the axes present)."""
+
+    source: str
+    t: np.ndarray
+    command: Mapping[str, np.ndarray]
+    actual: Mapping[str, np.ndarray]
+    current: Mapping[str, np.ndarray]
+
+    @property
+    def period(self) -> float:
+        return float((self.t[-1] - self.t[0]) / (self.t.size - 1))
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        return tuple(a for a in AXES if a in self.command)
+
+
+def read_servo_log(path: str | Path, *, fmt: str | None = None,
+                   columns: Sequence[str] | None = None, period: float | None = None,
+                   default_period: float | None = None, angle_scale: float = 1.0) -> ServoLog:
+    """Read and check a servo log (see the module docstring for the formats).
+
+    ``period`` (s) is the time step of a log without a ``t`` column (it overrides a halscope
+    log's own); ``default_period`` is used when neither is given (e.g. the machine's servo
+    period). ``angle_scale`` multiplies A and C values (``pi/180`` for logs in degrees).
+    """
+    path = Path(path)
+    source = str(path)
+    if fmt is None:
+        fmt = "table" if path.suffix.lower() in SUPPORTED_SUFFIXES else None
+        if fmt is None:
+            fmt = "halscope" if _looks_like_halscope(path) else "halsampler"
+    if fmt not in FORMATS:
+        raise InputError(f"unknown log format {fmt!r}; choose one of {', '.join(FORMATS)}",
+                         source=source)
+    if fmt == "table":
+        data = read_columns(path, (), ("t",) + COMMAND_COLUMNS + ACTUAL_COLUMNS + CURRENT_COLUMNS)
+        first_row = 1
+        if "t" not in data:
+            if period is None:
+                raise InputError("missing column t (or give the sample period)", source=source,
+                                 field="t")
+    elif fmt == "halsampler":
+        data, first_row = _read_halsampler(path, columns)
+    else:
+        data, first_row, scope_period = _read_halscope(path, columns)
+        period = scope_period if period is None else period
+    if period is None:
+        period = default_period
+    return _assemble(source, data, first_row, period, angle_scale)
+
+
+def _looks_like_halscope(path: Path) -> bool:
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(200).decode("utf-8", "replace")
+    except OSError:
+        return False
+    return bool(_PERIOD.match(head.splitlines()[0] if head.splitlines() else ""))
+
+
+def _read_text(path: Path) -> list[str]:
+    source = str(path)
+    if not path.is_file():
+        raise InputError("no such file", source=source)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read file: {exc}", source=source) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise InputError("not a text file (invalid UTF-8)", source=source, row=line) from None
+    return text.splitlines()
+
+
+def _parse_number(text: str, source: str, line: int, field: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"not a number: {text!r}", source=source, row=line,
+                         field=field) from None
+
+
+def _names(columns: Sequence[str] | None, count: int, source: str) -> list[str]:
+    if columns is None:
+        raise InputError("name the columns (--columns X,X_act,...)", source=source)
+    names = [c.strip() for c in columns]
+    known = set(("t", "n") + COMMAND_COLUMNS + ACTUAL_COLUMNS + CURRENT_COLUMNS)
+    for name in names:
+        if name and name not in known:
+            raise InputError(f"unknown column name {name!r}; use t, n, {', '.join(AXES)}, "
+                             "X_act.., I_X.. or an empty name to skip", source=source, field=name)
+    duplicates = {n for n in names if n and names.count(n) > 1}
+    if duplicates:
+        raise InputError(f"column {sorted(duplicates)[0]!r} named twice", source=source)
+    if len(names) != count:
+        raise InputError(f"{len(names)} column names for {count} values per line", source=source)
+    return names
+
+
+def _read_halsampler(path: Path, columns) -> tuple[dict, int]:
+    source = str(path)
+    lines = _read_text(path)
+    rows, line_numbers = [], []
+    names = None
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text:
+            continue
+        if text == "overrun":
+            raise InputError("halsampler overrun: samples were lost here (a gap); record again "
+                             "with a larger sampler FIFO", source=source, row=number)
+        fields = text.split()
+        if names is None:
+            names = _names(columns, len(fields), source)
+        if len(fields) != len(names):
+            raise InputError(f"expected {len(names)} values, found {len(fields)}", source=source,
+                             row=number)
+        rows.append([_parse_number(f, source, number, names[i] or f"column {i + 1}")
+                     for i, f in enumerate(fields)])
+        line_numbers.append(number)
+    if not rows:
+        raise InputError("no samples", source=source)
+    table = np.array(rows)
+    data = {name: table[:, i] for i, name in enumerate(names) if name}
+    if "n" in data:
+        step = np.diff(data["n"])
+        bad = np.flatnonzero(step != 1)
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise InputError(f"sample number jumps from {data['n'][k - 1]:g} to {data['n'][k]:g} "
+                             "(a gap: samples were lost)", source=source, row=line_numbers[k],
+                             field="n")
+    return data, line_numbers
+
+
+def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
+    source = str(path)
+    lines = _read_text(path)
+    if not lines:
+        raise InputError("empty file", source=source)
+    match = _PERIOD.match(lines[0])
+    if not match:
+        raise InputError("not a halscope log: the first line must be 'Sampling period is N ns'",
+                         source=source, row=1)
+    period_ns = _parse_number(match.group(1), source, 1, "Sampling period")
+    if not (np.isfinite(period_ns) and period_ns > 0):
+        raise InputError(f"sampling period must be > 0 ns, got {match.group(1)}", source=source,
+                         row=1, field="Sampling period")
+    body = [(i, line.strip()) for i, line in enumerate(lines[1:], start=2) if line.strip()]
+    if not body:
+        raise InputError("no samples", source=source)
+    rows, line_numbers = [], []
+    if ";" in body[0][1] or not any(c.isspace() for c in body[0][1]):
+        # LinuxCNC 2.10 and later: a label header, optional '# ...' lines, ';' rows.
+        labels = [label.strip() for label in body[0][1].split(";")]
+        for number, text in body[1:]:
+            if text.startswith("#"):
+                continue
+            fields = text.split(";")
+            if len(fields) != len(labels):
+                raise InputError(f"expected {len(labels)} values, found {len(fields)}",
+                                 source=source, row=number)
+            rows.append([_parse_number(f.strip(), source, number, labels[i])
+                         for i, f in enumerate(fields)])
+            line_numbers.append(number)
+    else:
+        labels = None
+        for number, text in body:
+            fields = text.split()
+            if len(fields) % 2:
+                raise InputError("expected 'label value' pairs", source=source, row=number)
+            these = fields[0::2]
+            if labels is None:
+                labels = these
+            elif these != labels:
+                raise InputError(f"labels {' '.join(these)} differ from the first row's "
+                                 f"{' '.join(labels)}", source=source, row=number)
+            rows.append([_parse_number(v, source, number, labels[i])
+                         for i, v in enumerate(fields[1::2])])
+            line_numbers.append(number)
+        # That writer's loop runs one row past the captured samples.
+        rows, line_numbers = rows[:-1], line_numbers[:-1]
+    if not rows:
+        raise InputError("no samples", source=source)
+    names = labels if columns is None else _names(columns, len(labels), source)
+    table = np.array(rows)
+    data = {name: table[:, i] for i, name in enumerate(names) if name}
+    return data, line_numbers, period_ns * 1e-9
+
+
+def _assemble(source: str, data: dict, first_row, period, angle_scale: float) -> ServoLog:
+    row_of = (lambda k: k + first_row) if isinstance(first_row, int) else (lambda k: first_row[k])
+    n = len(next(iter(data.values()))) if data else 0
+    if n < MIN_SAMPLES:
+        raise InputError(f"too few samples: {n}, need at least {MIN_SAMPLES}", source=source)
+    for name, values in data.items():
+        bad = ~np.isfinite(values)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise InputError(f"value is not finite ({values[k]})", source=source, row=row_of(k),
+                             field=name)
+    if "t" in data:
+        t = data["t"]
+    else:
+        if period is None or not (np.isfinite(period) and period > 0):
+            raise InputError("the log has no time column t: give the sample period", source=source,
+                             field="t")
+        base = data["n"] if "n" in data else np.arange(n, dtype=float)
+        t = (base - base[0]) * period
+    dt = np.diff(t)
+    typical = np.median(dt)
+    gaps = np.flatnonzero(dt > GAP_FACTOR * typical) if typical > 0 else np.zeros(0, int)
+    if gaps.size:
+        k = int(gaps[0]) + 1
+        raise InputError(f"gap: {dt[k - 1]:.6g} s between samples, the log's period is "
+                         f"{typical:.6g} s (samples lost?)", source=source, row=row_of(k), field="t")
+    try:
+        check_uniform_time(t, min_samples=MIN_SAMPLES)
+    except InputError as exc:
+        # Re-point the row at the file's own numbering (data rows, or text lines).
+        message = str(exc)
+        prefix = f"row {exc.row}, field 't': " if exc.row is not None else "field 't': "
+        message = message[len(prefix):] if message.startswith(prefix) else message
+        row = None if exc.row is None else row_of(exc.row - 1)
+        raise InputError(message, source=source, row=row, field="t") from None
+    command, actual, current = {}, {}, {}
+    for axis in AXES:
+        cmd, act = data.get(axis), data.get(f"{axis}_act")
+        if (cmd is None) != (act is None):
+            missing = axis if cmd is None else f"{axis}_act"
+            raise InputError(f"axis {axis} has only one of {axis}, {axis}_act", source=source,
+                             field=missing)
+        if cmd is None:
+            continue
+        scale = angle_scale if axis in ("A", "C") else 1.0
+        command[axis] = cmd * scale
+        actual[axis] = act * scale
+        if f"I_{axis}" in data:
+            current[axis] = data[f"I_{axis}"]
+            _check_saturation(current[axis], source, f"I_{axis}", row_of)
+    if not command:
+        raise InputError(f"no axis in the log: need at least one pair of columns X, X_act (or "
+                         f"Y, Z, A, C); found {', '.join(data) or 'none'} (name them with "
+                         "--columns)", source=source)
+    return ServoLog(source=source, t=t, command=MappingProxyType(command),
+                    actual=MappingProxyType(actual), current=MappingProxyType(current))
+
+
+def _check_saturation(values: np.ndarray, source: str, name: str, row_of) -> None:
+    peak = np.max(np.abs(values))
+    if peak == 0:
+        return
+    at_peak = np.abs(values) == peak
+    # Longest run of consecutive samples at the extreme.
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], at_peak.astype(int), [0]])))
+    starts, ends = edges[0::2], edges[1::2]
+    runs = ends - starts
+    if runs.max() >= SATURATION_RUN:
+        k = int(starts[np.argmax(runs)])
+        raise InputError(f"saturated: held at {values[k]:g} for {int(runs.max())} samples (the "
+                         "amplifier's current limit?); the drive is not linear there, record "
+                         "with a gentler motion", source=source, row=row_of(k), field=name)
