@@ -43,7 +43,7 @@ tf     den     closed-loop x/X denominator in s, highest power first (list); the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -230,7 +230,7 @@ class Controller:
     name: str
     type: str
     axes: tuple
-    source: str = ""
+    source: str = field(default="", compare=False)  # for messages; not part of the law
 
     @property
     def is_linear(self) -> bool:
