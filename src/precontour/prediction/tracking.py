@@ -278,8 +278,8 @@ class AxisPrediction:
 
 
 def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
-                     tol_linear: float | None = None, tol_rotary: float | None = None
-                     ) -> AxisPrediction:
+                     tol_linear: float | None = None, tol_rotary: float | None = None,
+                     initial_knots: tuple | None = None) -> AxisPrediction:
     """Fit each axis command (spec section 3) and predict its tracking error (section 4).
 
     Parameters
@@ -292,8 +292,12 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
         Closed-loop error models, e.g. ``machine.controller(name).error_models(machine.drives)``.
     tol_linear, tol_rotary : float, optional
         Fit tolerances (defaults 1 um, 1 urad).
+    initial_knots : tuple of 5 int arrays, optional
+        Knots to start each axis's fit from (``AxisPrediction.fits.knot_indices`` of a
+        prediction of a similar command, see :func:`fit_min_jerk`).
     """
     fits = fit_axes(t, q, tol_linear=DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear,
-                    tol_rotary=DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary)
+                    tol_rotary=DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary,
+                    initial_knots=initial_knots)
     errors = tuple(tracking_error(fit.spline, model) for fit, model in zip(fits, models))
     return AxisPrediction(fits=fits, errors=errors)
