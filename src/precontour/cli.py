@@ -16,8 +16,8 @@ import numpy as np
 from . import __version__
 from .machine.drives import AXES, ROTARY_AXES
 from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
-from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
-                           compensate)
+from .compensation.pieces import compensate_program, predict_program
+from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS)
 from .prediction.contour import ReferencePath, contour_errors
 from .errors import InputError, PrecontourError
 from .trajectory.feedplan import DEFAULT_FEED
@@ -26,7 +26,6 @@ from .simulation.virtual_machine import simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
 from .tables import read_trajectory, trajectory_columns, write_columns
 from .toolpath import read_toolpath
-from .prediction.tracking import predict_tracking
 from .trajectory.generate import DEFAULT_DWELL, generate_trajectory, summarize
 
 EXIT_USAGE = 2
@@ -233,21 +232,20 @@ def run_predict(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     models = machine.controller(args.controller).error_models(machine.drives)
     traj = read_trajectory(args.trajectory)
-    prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
-                                  tol_rotary=args.tol_rotary)
-    e = prediction(traj.t)
+    # long programs are predicted in pieces (bounded memory; compensation/pieces.py)
+    prediction = predict_program(traj, models, machine.kinematics, tol_linear=args.tol_linear,
+                                 tol_rotary=args.tol_rotary)
+    e = prediction.e
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
-    contour = None
-    if traj.has_reference:
-        contour = contour_errors(ReferencePath.from_trajectory(traj), traj.q - e,
-                                 machine.kinematics)
+    contour = prediction.contour
+    if contour is not None:
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
     write_columns(args.output, columns, inputs=[args.trajectory])
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
-    print(_axis_table(prediction.fits.n_knots, np.abs(e).max(axis=0)))
+    print(_axis_table(prediction.n_knots, np.abs(e).max(axis=0)))
     if contour is not None:
         print("predicted contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {elapsed:.3f} s")
@@ -284,9 +282,10 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    result = compensate(traj, machine.kinematics, models, method=args.method,
-                        iterations=args.iterations, tol_linear=args.tol_linear,
-                        tol_rotary=args.tol_rotary, progress=progress)
+    # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
+    result = compensate_program(traj, machine.kinematics, models, method=args.method,
+                                iterations=args.iterations, tol_linear=args.tol_linear,
+                                tol_rotary=args.tol_rotary, progress=progress)
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=[args.trajectory])
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")

@@ -130,8 +130,14 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         raise ValueError(f"{name}: tolerance must be > 0, got {tol!r}")
 
     n_samples = t.size
-    n_segments = max(3, (n_samples - 1) // INITIAL_SAMPLES_PER_SEGMENT)
-    knots = np.unique(np.round(np.linspace(0, n_samples - 1, n_segments + 1)).astype(np.intp))
+    if n_samples > 3 * INITIAL_SAMPLES_PER_SEGMENT:
+        # every INITIAL_SAMPLES_PER_SEGMENT-th sample from the first: a piece of a long
+        # program cut at a multiple of it starts from the same knots as the whole program
+        knots = np.append(np.arange(0, n_samples - 1, INITIAL_SAMPLES_PER_SEGMENT),
+                          n_samples - 1).astype(np.intp)
+    else:
+        n_segments = max(3, (n_samples - 1) // INITIAL_SAMPLES_PER_SEGMENT)
+        knots = np.unique(np.round(np.linspace(0, n_samples - 1, n_segments + 1)).astype(np.intp))
     if initial_knots is not None:
         given = np.asarray(initial_knots, dtype=np.intp)
         given = given[(given > 0) & (given < n_samples - 1)]
