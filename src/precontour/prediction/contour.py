@@ -134,6 +134,10 @@ class ReferencePath:
         return _curve_arrays(self.orientation, self.O)
 
     @cached_property
+    def _own_windows(self):
+        return self._window(self.t, DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH)
+
+    @cached_property
     def progress(self) -> np.ndarray:
         """Path progress at each reference sample: tip arc length plus ORIENTATION_LENGTH mm
         per rad of orientation change (monotone), mm."""
@@ -164,7 +168,11 @@ class ReferencePath:
         Newton's method on the spline; the refined point is kept unless the sample itself is
         nearer. Compiled, one sample per iteration, spread over the available cores."""
         start = self.t if start is None else np.asarray(start, dtype=float)
-        base, lo, hi = self._window(start, window, window_length)
+        if (window, window_length) == (DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH) and (
+                start is self.t or (start.shape == self.t.shape and np.array_equal(start, self.t))):
+            base, lo, hi = self._own_windows    # the usual case: searched at its own samples
+        else:
+            base, lo, hi = self._window(start, window, window_length)
         breaks, coef, samples, chord = (self._tip_arrays if kind == _TIP
                                         else self._orientation_arrays)
         points = np.ascontiguousarray(points, dtype=float)
@@ -184,16 +192,75 @@ def _curve_arrays(curve: BSpline, samples: np.ndarray):
     """What the compiled search needs of a reference curve: its polynomial pieces (breaks and
     Taylor coefficients at each break, highest power first, shape (pieces, k + 1, 3)), the
     samples and their cumulative chord length."""
-    breaks = np.unique(curve.t)
-    left = breaks[:-1]
-    degree = curve.k
-    coef = np.empty((left.size, degree + 1, samples.shape[1]))
-    factorial = 1.0
-    for order in range(degree + 1):
-        factorial *= max(order, 1)
-        coef[:, degree - order, :] = curve(left, nu=order) / factorial
+    knots = np.ascontiguousarray(curve.t, dtype=float)
+    distinct = np.concatenate([[True], np.diff(knots) > 0])
+    breaks = knots[distinct]
+    coef = _taylor_coefficients(knots, np.ascontiguousarray(curve.c, dtype=float), curve.k,
+                                breaks)
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
     return breaks, coef, np.ascontiguousarray(samples), chord
+
+
+@numba.njit(cache=True, parallel=True)
+def _taylor_coefficients(knots, control, degree, breaks):
+    """Taylor coefficients / m! of a B-spline at the left end of each piece, highest power
+    first: the derivatives' control points by differencing (Piegl & Tiller, The NURBS Book,
+    A3.3) on the bases of every degree from one Cox-de Boor triangle (A2.2)."""
+    n_coef = control.shape[0]
+    dims = control.shape[1]
+    pieces = breaks.size - 1
+    coef = np.empty((pieces, degree + 1, dims))
+    for chunk in numba.prange((pieces + _CHUNK - 1) // _CHUNK):
+        basis = np.zeros((degree + 1, degree + 1))   # basis[q, r] = N_{span-q+r, q}(x)
+        left = np.zeros(degree + 1)
+        right = np.zeros(degree + 1)
+        points = np.zeros((degree + 1, degree + 1, dims))
+        for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
+            _taylor_coefficients_at(knots, control, degree, breaks[j], basis, left, right,
+                                    points, coef[j])
+    return coef
+
+
+@numba.njit(cache=True)
+def _taylor_coefficients_at(knots, control, degree, x, basis, left, right, points, out):
+    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[degree - m]."""
+    n_coef = control.shape[0]
+    dims = control.shape[1]
+    lo, hi = degree, n_coef - 1
+    while hi - lo > 1:                       # knots[span] <= x < knots[span + 1]
+        mid = (lo + hi) // 2
+        if knots[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    span = hi if knots[hi] <= x else lo
+    basis[0, 0] = 1.0
+    for q in range(1, degree + 1):
+        left[q] = x - knots[span + 1 - q]
+        right[q] = knots[span + q] - x
+        saved = 0.0
+        for r in range(q):
+            temp = basis[q - 1, r] / (right[r + 1] + left[q - r])
+            basis[q, r] = saved + right[r + 1] * temp
+            saved = left[q - r] * temp
+        basis[q, q] = saved
+    first = span - degree
+    for i in range(degree + 1):
+        points[0, i] = control[first + i]
+    factorial = 1.0
+    for m in range(degree + 1):
+        if m > 0:
+            factorial *= m
+            for i in range(degree + 1 - m):
+                scale = (degree - m + 1) / (knots[first + i + degree + 1]
+                                            - knots[first + i + m])
+                for d in range(dims):
+                    points[m, i, d] = scale * (points[m - 1, i + 1, d] - points[m - 1, i, d])
+        for d in range(dims):
+            total = 0.0
+            for i in range(degree + 1 - m):
+                total += basis[degree - m, i] * points[m, i, d]
+            out[degree - m, d] = total / factorial
 
 
 @numba.njit(cache=True)

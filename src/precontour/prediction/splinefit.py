@@ -142,14 +142,14 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         given = np.asarray(initial_knots, dtype=np.intp)
         given = given[(given > 0) & (given < n_samples - 1)]
         if given.size >= 2:
-            knots = np.unique(np.concatenate([[0], given, [n_samples - 1]]))
+            knots = _sorted_union(np.array([0, n_samples - 1], dtype=np.intp), np.sort(given))
     for rounds in range(1, max_rounds + 1):
         coef = _solve_min_jerk(t[knots], x[knots])
         deviation = _evaluate_at_samples(coef, t, knots) - x
         outside = np.abs(deviation) > tol
         if not outside.any():
             break
-        knots = np.union1d(knots, _worst_of_each_stretch(np.abs(deviation), outside))
+        knots = _sorted_union(knots, _worst_of_each_stretch(np.abs(deviation), outside))
     else:  # pragma: no cover - every round adds a knot, so this needs > N rounds
         raise RuntimeError(f"{name}: spline fit did not converge in {max_rounds} rounds")
     spline = _to_ppoly(coef, t[knots])
@@ -293,6 +293,16 @@ def _evaluate_at_samples(coef, t, knots):
                 v = v * tau + monomial[power]
             value[k] = v
     return value
+
+
+def _sorted_union(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Union of two sorted index arrays, sorted (np.union1d hashes: 10x slower here)."""
+    merged = np.concatenate([a, b])
+    merged.sort(kind="stable")
+    keep = np.empty(merged.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(merged[1:], merged[:-1], out=keep[1:])
+    return merged[keep]
 
 
 def _worst_of_each_stretch(abs_deviation: np.ndarray, outside: np.ndarray) -> np.ndarray:
