@@ -12,7 +12,9 @@ x real time (motion time / compute time), lsim time / stage time, peak memory.
 forward, ... 300 times (3.6e7 samples, a stop at every turn), predicted and compensated piece
 by piece (``precontour.compensation.pieces``) without ever holding it in memory.
 
-Run: ``PYTHONPATH=src python benchmarks/bench_pipeline.py [--sizes 1e4,1e5,1e6] [--long]``.
+Run: ``PYTHONPATH=src python benchmarks/bench_pipeline.py [--sizes 1e4,1e5,1e6] [--long]
+[--stages "contour errors;compensate, 1 pass"]`` (lsim always runs: it is the baseline). The
+same script measures an older version of the package (``PYTHONPATH=old/src``) for comparison.
 """
 
 from __future__ import annotations
@@ -65,7 +67,10 @@ def _stage(name: str, traj):
     from scipy import signal
 
     from precontour import load_machine
-    from precontour.compensation.pieces import compensate_program
+    try:
+        from precontour.compensation.pieces import compensate_program
+    except ImportError:   # a version from before pieces, measured for comparison
+        from precontour.compensation.precompensate import compensate as compensate_program
     from precontour.prediction.contour import ReferencePath
     from precontour.prediction.tracking import predict_tracking
     from precontour.simulation.virtual_machine import simulate_trajectory
@@ -82,11 +87,12 @@ def _stage(name: str, traj):
     if name == "reference curves":
         def build():
             reference = ReferencePath.from_trajectory(traj)
-            return reference._tip_arrays, reference._orientation_arrays
+            _prepare(reference)
+            return reference
         return build
     if name == "contour errors":
         reference = ReferencePath.from_trajectory(traj)
-        reference._tip_arrays, reference._orientation_arrays   # built: the previous stage
+        _prepare(reference)                  # built: the previous stage
         q_act = traj.q - predict_tracking(traj.t, traj.q, models)(traj.t)
         return lambda: reference.errors(*machine.kinematics.forward(q_act))
     if name == "compensate, 1 pass":
@@ -99,6 +105,14 @@ def _stage(name: str, traj):
         return lambda: [signal.lsim((m.num, m.den), traj.q[:, i] - traj.q[0, i], traj.t)
                         for i, m in enumerate(models)]
     raise ValueError(name)
+
+
+def _prepare(reference) -> None:
+    """Build what a reference path computes on first use (whichever version is measured)."""
+    for name in ("_tip_arrays", "_orientation_arrays", "_own_windows", "_tip_tree",
+                 "_orientation_tree", "progress"):
+        if hasattr(type(reference), name):
+            getattr(reference, name)
 
 
 def _run_stage(name: str, n_samples: int) -> None:
@@ -171,17 +185,21 @@ def main(argv: list[str]) -> None:
     sizes = [10_000, 100_000, 1_000_000]
     if "--sizes" in argv:
         sizes = [int(float(s)) for s in argv[argv.index("--sizes") + 1].split(",")]
+    stages = STAGES
+    if "--stages" in argv:
+        wanted = argv[argv.index("--stages") + 1].split(";")
+        stages = tuple(name for name in STAGES if name in wanted or name == STAGES[-1])
     print("| stage | samples | time (s) | us / sample | x real time | lsim / stage | "
           "peak memory (MB) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     lsim_us = None
     for n in sizes:
         _trajectory(n)
-        results = {name: _child("--stage", name, str(n)) for name in STAGES}
+        results = {name: _child("--stage", name, str(n)) for name in stages}
         lsim = results["lsim of the 5 loops"]["seconds"]
         samples = results["lsim of the 5 loops"]["samples"]
         lsim_us = 1e6 * lsim / samples
-        for name in STAGES:
+        for name in stages:
             r = results[name]
             label = name + (" (pre-optimization)" if name in PRE_OPTIMIZATION else "")
             print(f"| {label} | {r['samples']:,} | {r['seconds']:.3g} | "
