@@ -12,6 +12,8 @@ one multiplier per knot for jerk continuity, so a fit costs O(samples) per round
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -192,11 +194,22 @@ def fit_axes(t: np.ndarray, q: np.ndarray, *, tol_linear: float = DEFAULT_TOL_LI
     (``initial_knots``: one knot-index array per axis, e.g. ``AxisFits.knot_indices`` of a
     fit of a similar command)."""
     q = np.asarray(q, dtype=float)
-    fits = tuple(
-        fit_min_jerk(t, q[:, i], tol_rotary if axis in ROTARY_AXES else tol_linear, name=axis,
-                     initial_knots=None if initial_knots is None else initial_knots[i])
-        for i, axis in enumerate(AXES))
-    return AxisFits(fits)
+
+    def fit(i):
+        return fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
+                            name=AXES[i],
+                            initial_knots=None if initial_knots is None else initial_knots[i])
+    return AxisFits(tuple(map_axes(fit)))
+
+
+def map_axes(work) -> list:
+    """[work(0), ..., work(4)], the axes spread over the cores: the fits' banded solves
+    (LAPACK) and compiled loops release the interpreter lock, and the axes are independent."""
+    workers = min(len(AXES), os.cpu_count() or 1)
+    if workers == 1:
+        return [work(i) for i in range(len(AXES))]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(work, range(len(AXES))))
 
 
 def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:

@@ -22,8 +22,9 @@ from math import factorial
 import numpy as np
 from scipy.interpolate import PPoly
 
-from ..machine.drives import LinearErrorModel
-from .splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_axes
+from ..machine.drives import AXES, ROTARY_AXES, LinearErrorModel
+from .splinefit import (DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_min_jerk,
+                        map_axes)
 
 #: Poles closer than this (relative to their magnitude) are treated as one repeated pole.
 POLE_CLUSTER_RTOL = 1e-4
@@ -296,8 +297,15 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
         Knots to start each axis's fit from (``AxisPrediction.fits.knot_indices`` of a
         prediction of a similar command, see :func:`fit_min_jerk`).
     """
-    fits = fit_axes(t, q, tol_linear=DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear,
-                    tol_rotary=DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary,
-                    initial_knots=initial_knots)
-    errors = tuple(tracking_error(fit.spline, model) for fit, model in zip(fits, models))
-    return AxisPrediction(fits=fits, errors=errors)
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    tol_linear = DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear
+    tol_rotary = DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary
+
+    def axis(i):
+        fit = fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
+                           name=AXES[i],
+                           initial_knots=None if initial_knots is None else initial_knots[i])
+        return fit, tracking_error(fit.spline, models[i])
+    fits, errors = zip(*map_axes(axis))
+    return AxisPrediction(fits=AxisFits(tuple(fits)), errors=tuple(errors))
