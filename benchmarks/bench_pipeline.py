@@ -156,21 +156,30 @@ def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
     models = machine.controller(CONTROLLER).error_models(machine.drives)
     pieces = piece_samples or PIECE_SAMPLES
     result = {"samples": n, "duration": n * ts}
-    start = time.perf_counter()
-    worst = 0.0
-    for _, _, contour, _ in predict_pieces(read, n, ts, models, machine.kinematics,
-                                           piece_samples=pieces):
-        worst = max(worst, float(contour.tip.max()))
-    result["predict_seconds"] = time.perf_counter() - start
-    result["predict_tip_max_um"] = 1e3 * worst
+
+    def report(stage, piece, start):
+        # progress on stderr: samples done, seconds, peak memory so far
+        print(f"{stage}: {piece.keep_stop:,} of {n:,} samples in "
+              f"{time.perf_counter() - start:.1f} s, peak "
+              f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB",
+              file=sys.stderr, flush=True)
     start = time.perf_counter()
     before = after = 0.0
-    for _, part in compensate_pieces(read, n, ts, machine.kinematics, models,
-                                     piece_samples=pieces):
+    for piece, part in compensate_pieces(read, n, ts, machine.kinematics, models,
+                                         piece_samples=pieces):
         before = max(before, float(part.before.tip.max()))
         after = max(after, float(part.after.tip.max()))
+        report("compensate", piece, start)
     result["compensate_seconds"] = time.perf_counter() - start
     result["compensate_tip_max_um"] = (1e3 * before, 1e3 * after)
+    start = time.perf_counter()
+    worst = 0.0
+    for piece, _, contour, _ in predict_pieces(read, n, ts, models, machine.kinematics,
+                                               piece_samples=pieces):
+        worst = max(worst, float(contour.tip.max()))
+        report("predict", piece, start)
+    result["predict_seconds"] = time.perf_counter() - start
+    result["predict_tip_max_um"] = 1e3 * worst
     result["peak_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps(result))
 
