@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 from scipy.interpolate import PPoly
-from scipy.linalg import solve_banded
+from scipy.linalg.lapack import dgbsv
 
 from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError
@@ -57,6 +57,7 @@ _JERK_START = np.array([-60.0, -36.0, -9.0, 60.0, -24.0, 3.0])
 _JERK_END = np.array([-60.0, -24.0, -3.0, 60.0, -36.0, 9.0])
 _Y = np.array([1, 2, 4, 5])  # positions of the unknown velocities / accelerations in c
 _BAND = 5                    # half bandwidth of the KKT matrix with 3 unknowns per knot
+_DIAGONAL = 2 * _BAND        # row of the diagonal in gbsv's band storage
 
 
 @dataclass(frozen=True)
@@ -223,8 +224,9 @@ def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
     time_scale = (t_knots[-1] - t_knots[0]) / n  # keeps the scaled segment lengths near 1
     h = np.diff(t_knots) / time_scale
     ab, rhs = _kkt_system(h, np.ascontiguousarray(x_knots, dtype=float))
-    solution = solve_banded((_BAND, _BAND), ab, rhs, overwrite_ab=True, overwrite_b=True,
-                            check_finite=False)
+    _, _, solution, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=True, overwrite_b=True)
+    if info != 0:  # pragma: no cover - distinct knot times make the system regular
+        raise np.linalg.LinAlgError(f"minimum-jerk system is singular (LAPACK info {info})")
     velocity = solution[0::3]
     acceleration = solution[1::3]
     coef = np.empty((n, 6))
@@ -239,7 +241,8 @@ def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _kkt_system(h, x_knots):
-    """Banded KKT matrix (LAPACK band storage, half bandwidth _BAND) and right-hand side.
+    """Banded KKT matrix and right-hand side, in the band storage LAPACK's gbsv factors in
+    place (half bandwidth _BAND, _BAND more rows for the fill-in of pivoting).
 
     Cost sum_i c_i^T G c_i / h_i^5 with c_i = E_p p_i + diag(s_i) y_i, s_i = (h, h^2, h, h^2):
     each segment adds its 4 x 4 Hessian block on the velocities and accelerations of its two
@@ -249,7 +252,7 @@ def _kkt_system(h, x_knots):
     """
     n = h.size
     size = 3 * (n + 1)
-    ab = np.zeros((2 * _BAND + 1, size))
+    ab = np.zeros((3 * _BAND + 1, size))
     rhs = np.zeros(size)
     var = np.empty(4, dtype=np.intp)
     scale = np.empty(4)
@@ -265,21 +268,21 @@ def _kkt_system(h, x_knots):
         for a in range(4):
             ya = _Y[a]
             for b in range(4):
-                ab[_BAND + var[a] - var[b], var[b]] += (
+                ab[_DIAGONAL + var[a] - var[b], var[b]] += (
                     _JERK_GRAM[ya, _Y[b]] * scale[a] * scale[b] * inv_h5)
             rhs[var[a]] -= (p0 * _JERK_GRAM[0, ya] + p1 * _JERK_GRAM[3, ya]) * scale[a] * inv_h5
             end = _JERK_END[ya] * scale[a] * inv_h3
             start = -_JERK_START[ya] * scale[a] * inv_h3
-            ab[_BAND + base + 5 - var[a], var[a]] += end      # constraint rows
-            ab[_BAND + var[a] - base - 5, base + 5] += end    # their transposes
-            ab[_BAND + base + 2 - var[a], var[a]] += start
-            ab[_BAND + var[a] - base - 2, base + 2] += start
+            ab[_DIAGONAL + base + 5 - var[a], var[a]] += end      # constraint rows
+            ab[_DIAGONAL + var[a] - base - 5, base + 5] += end    # their transposes
+            ab[_DIAGONAL + base + 2 - var[a], var[a]] += start
+            ab[_DIAGONAL + var[a] - base - 2, base + 2] += start
         rhs[base + 5] -= (p0 * _JERK_END[0] + p1 * _JERK_END[3]) * inv_h3
         rhs[base + 2] += (p0 * _JERK_START[0] + p1 * _JERK_START[3]) * inv_h3
     for fixed in (0, 1, 3 * n, 3 * n + 1):
         for col in range(max(0, fixed - _BAND), min(size, fixed + _BAND + 1)):
-            ab[_BAND + fixed - col, col] = 0.0
-        ab[_BAND, fixed] = 1.0
+            ab[_DIAGONAL + fixed - col, col] = 0.0
+        ab[_DIAGONAL, fixed] = 1.0
         rhs[fixed] = 0.0
     return ab, rhs
 
