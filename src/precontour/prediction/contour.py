@@ -195,18 +195,19 @@ def _curve_arrays(curve: BSpline, samples: np.ndarray):
     knots = np.ascontiguousarray(curve.t, dtype=float)
     distinct = np.concatenate([[True], np.diff(knots) > 0])
     breaks = knots[distinct]
+    # the span of each piece: the last copy of its left break, knots[span] <= x < knots[span+1]
+    spans = np.flatnonzero(distinct)[1:] - 1
     coef = _taylor_coefficients(knots, np.ascontiguousarray(curve.c, dtype=float), curve.k,
-                                breaks)
+                                breaks, spans)
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
     return breaks, coef, np.ascontiguousarray(samples), chord
 
 
 @numba.njit(cache=True, parallel=True)
-def _taylor_coefficients(knots, control, degree, breaks):
+def _taylor_coefficients(knots, control, degree, breaks, spans):
     """Taylor coefficients / m! of a B-spline at the left end of each piece, highest power
     first: the derivatives' control points by differencing (Piegl & Tiller, The NURBS Book,
     A3.3) on the bases of every degree from one Cox-de Boor triangle (A2.2)."""
-    n_coef = control.shape[0]
     dims = control.shape[1]
     pieces = breaks.size - 1
     coef = np.empty((pieces, degree + 1, dims))
@@ -216,24 +217,15 @@ def _taylor_coefficients(knots, control, degree, breaks):
         right = np.zeros(degree + 1)
         points = np.zeros((degree + 1, degree + 1, dims))
         for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
-            _taylor_coefficients_at(knots, control, degree, breaks[j], basis, left, right,
-                                    points, coef[j])
+            _taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
+                                    right, points, coef[j])
     return coef
 
 
 @numba.njit(cache=True)
-def _taylor_coefficients_at(knots, control, degree, x, basis, left, right, points, out):
+def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out):
     """Taylor coefficients / m! at x (see _taylor_coefficients), into out[degree - m]."""
-    n_coef = control.shape[0]
     dims = control.shape[1]
-    lo, hi = degree, n_coef - 1
-    while hi - lo > 1:                       # knots[span] <= x < knots[span + 1]
-        mid = (lo + hi) // 2
-        if knots[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    span = hi if knots[hi] <= x else lo
     basis[0, 0] = 1.0
     for q in range(1, degree + 1):
         left[q] = x - knots[span + 1 - q]
