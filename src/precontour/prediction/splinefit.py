@@ -209,8 +209,13 @@ def map_axes(work) -> list:
     workers = min(len(AXES), os.cpu_count() or 1)
     if workers == 1:
         return [work(i) for i in range(len(AXES))]
+    # rotary axes first: at their finer tolerance they need the most knots (the longest
+    # jobs first keeps the cores evenly busy)
+    order = [i for i, axis in enumerate(AXES) if axis in ROTARY_AXES][::-1]
+    order += [i for i, axis in enumerate(AXES) if axis not in ROTARY_AXES]
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(work, range(len(AXES))))
+        done = dict(zip(order, pool.map(work, order)))
+    return [done[i] for i in range(len(AXES))]
 
 
 def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:

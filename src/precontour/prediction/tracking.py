@@ -275,7 +275,7 @@ class AxisPrediction:
     errors: tuple[TrackingError, ...]
 
     def __call__(self, t) -> np.ndarray:
-        return np.stack([err(t) for err in self.errors], axis=-1)
+        return np.stack(map_axes(lambda i: self.errors[i](t)), axis=-1)
 
 
 def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
