@@ -21,8 +21,8 @@ import numpy as np
 from . import __version__
 from .machine.drives import AXES, ROTARY_AXES
 from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
-from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS,
-                           compensate)
+from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program, predict_program
+from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS)
 from .compensation.stops import DEFAULT_LEARNING_PASSES
 from .prediction.contour import ReferencePath, contour_errors
 from .errors import NOTICES, InputError, PrecontourError
@@ -39,7 +39,6 @@ from .identification import (FORMATS as LOG_FORMATS, excitation_trajectory, iden
 from .identification.excitation import DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR, DEFAULT_TRAVEL_ROTARY
 from .machine.machine_file import machine_data
 from .toolpath import read_program, read_toolpath, toolpath_format
-from .prediction.tracking import predict_tracking
 from .trajectory.generate import (DEFAULT_DWELL, default_max_samples, generate_trajectory,
                                   summarize)
 from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
@@ -384,22 +383,21 @@ def run_predict(args: argparse.Namespace) -> int:
     # commands (e.g. pre-compensated ones) are measured against their own reference columns
     traj = read_trajectory(args.trajectory, kinematics=machine.kinematics,
                            tolerance=COMMAND_TOLERANCE)
+    # long programs are predicted in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        prediction = predict_tracking(traj.t, traj.q, models, tol_linear=args.tol_linear,
-                                      tol_rotary=args.tol_rotary)
-    e = prediction(traj.t)
+        prediction = predict_program(traj, models, machine.kinematics,
+                                     tol_linear=args.tol_linear, tol_rotary=args.tol_rotary)
+    e = prediction.e
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
-    contour = None
-    if traj.has_reference:
-        contour = contour_errors(ReferencePath.from_trajectory(traj), traj.q - e,
-                                 machine.kinematics)
+    contour = prediction.contour
+    if contour is not None:
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
     write_columns(args.output, columns, inputs=inputs)
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
-    print(_axis_table(prediction.fits.n_knots, np.abs(e).max(axis=0)))
+    print(_axis_table(prediction.n_knots, np.abs(e).max(axis=0)))
     if contour is not None:
         print("predicted contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {elapsed:.3f} s")
@@ -461,6 +459,11 @@ def run_compensate(args: argparse.Namespace) -> int:
             print(f"  no learning: the trajectory's sample period {traj.ts:g} s is not the "
                   f"servo period {machine.servo_period:g} s of the virtual machine",
                   file=sys.stderr)
+        elif traj.n_samples > AT_ONCE_SAMPLES:
+            # learning runs the whole trajectory on the virtual machine; long programs are
+            # compensated in pieces, linearly
+            print(f"  no learning: {traj.n_samples} samples are more than "
+                  f"{AT_ONCE_SAMPLES} (compensated in pieces)", file=sys.stderr)
         else:
             machine_actual = virtual_machine_actual(traj.t, machine, args.controller)
 
@@ -468,12 +471,14 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
+    learning = {} if machine_actual is None else dict(
+        machine_actual=machine_actual, learning_passes=args.learn,
+        learning_progress=learning_progress)
+    # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        result = compensate(traj, machine.kinematics, models, method=args.method,
-                            iterations=args.iterations, tol_linear=args.tol_linear,
-                            tol_rotary=args.tol_rotary, progress=progress,
-                            machine_actual=machine_actual, learning_passes=args.learn,
-                            learning_progress=learning_progress)
+        result = compensate_program(traj, machine.kinematics, models, method=args.method,
+                                    iterations=args.iterations, tol_linear=args.tol_linear,
+                                    tol_rotary=args.tol_rotary, progress=progress, **learning)
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")

@@ -162,3 +162,20 @@ def test_tolerance_below_round_off_is_an_input_error_not_a_hang():
     with pytest.raises(InputError, match=r"field 'X': the spline fit cannot get within the "
                                          r"tolerance 1e-30: .* use a larger tolerance"):
         fit_min_jerk(t, x, 1e-30, name="X")
+
+
+def test_warm_start_keeps_the_given_knots_and_needs_fewer_rounds():
+    # a corrected command (the original plus a small high-frequency correction) fitted from
+    # the original's knots: within tolerance, a superset of them, in fewer rounds
+    t = np.arange(0, 20.0, 1e-3)
+    s = t / t[-1]
+    ramp = 35 * s**4 - 84 * s**5 + 70 * s**6 - 20 * s**7
+    envelope = (s * (1 - s)) ** 4 * 256
+    x = 50 * ramp + 2 * np.sin(2 * np.pi * (1 + 4 * s) * t) * envelope
+    correction = 0.002 * np.sin(2 * np.pi * (3 + 12 * s) * t) * envelope
+    original = fit_min_jerk(t, x, 1e-4)
+    cold = fit_min_jerk(t, x + correction, 1e-4)
+    warm = fit_min_jerk(t, x + correction, 1e-4, initial_knots=original.knot_index)
+    assert np.abs(warm(t) - (x + correction)).max() <= 1e-4
+    assert np.all(np.isin(original.knot_index, warm.knot_index))
+    assert warm.rounds < cold.rounds

@@ -130,8 +130,18 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     reference = reference or ReferencePath.from_trajectory(traj)
     t = traj.t
 
+    # Each fit starts from the knots of the previous one: a corrected command needs the
+    # knots of the command it corrects and more (issue 11: the corrected commands took three
+    # times the rounds of the original when fitted from scratch).
+    knots = None
+
     def predict(q):
-        return predicted_actual(t, q, models, tol_linear, tol_rotary)
+        nonlocal knots
+        prediction = predict_tracking(t, q, models, initial_knots=knots,
+                                      tol_linear=COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear,
+                                      tol_rotary=COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
+        knots = prediction.fits.knot_indices
+        return q - prediction(t)
 
     def errors_of(q_actual):
         return contour_errors(reference, q_actual, kinematics)
@@ -141,14 +151,17 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     before = errors_of(q_act)
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
+    current = before
     for n in range(1, iterations + 1):
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:
-            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict)
+            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict,
+                                  current.orientation_parameter)
         q_cmd = q_new
         q_act = predict(q_cmd)
         after = errors_of(q_act)
+        current = after
         history.append(after.summary())
         if progress is not None:
             progress(n, after.summary())
@@ -175,13 +188,16 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                               method=method, learning=learning)
 
 
-def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict):
+def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, w=None):
     """One pass of spec section 6, steps 1-5, with the current command in place of the
-    reference command (identical on the first pass)."""
+    reference command (identical on the first pass). ``w``: the closest reference
+    orientation parameters of the predicted actual ``q_act`` where already known (the
+    contour errors of ``q_act`` found them)."""
     P_cmd, O_cmd = kinematics.forward(q_cmd)
     # Steps 1-2: orientation through the spherical parallelogram O1, O*, O_cmd, O_comp.
     _, O1 = kinematics.forward(q_act)
-    w = reference.closest_orientation(O1, traj.t)
+    if w is None:
+        w = reference.closest_orientation(O1, traj.t)
     O_star = _unit(_lead_blend(_unit(reference.orientation(w)), traj.O, w - traj.t, traj.ts))
     O_centre = _unit(O_cmd + O_star)
     O_comp = _unit(2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1)

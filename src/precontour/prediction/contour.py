@@ -4,8 +4,8 @@ Spec section 5 (paper Eqs. 18-21). The reference tool tip P(u) and orientation O
 quintic interpolating splines of the reference samples, parameterized by time. For each actual
 sample the closest reference point is searched inside a window around the time-corresponding
 parameter, so a path that comes back near itself cannot capture the wrong branch: the nearest
-reference sample in the window (from a k-d tree) starts Newton's method on the spline.
-Everything is vectorized over samples.
+reference sample in the window starts Newton's method on the spline. The per-sample search is
+compiled (numba) and runs on all cores.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
-from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..machine.kinematics import angle_between
@@ -35,9 +35,9 @@ NEWTON_ITERATIONS = 60
 PARAMETER_TOLERANCE = 1e-9
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
-#: Newton's method starts from the nearest reference sample in the window, found among this
-#: many nearest reference samples (k-d tree), or by scanning the window where none is in it.
-NEIGHBOURS = 16
+_TIP, _ORIENTATION = 0, 1
+#: Samples per task of the compiled search.
+_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -105,36 +105,14 @@ class ReferencePath:
                     window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
         """Parameter u* of the reference point closest to each ``P_act`` (spec Eq. 19):
         P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``."""
-        curve, d1, d2 = self.tip, self.tip.derivative(), self.tip.derivative(2)
-
-        def gradient_and_curvature(u, i):
-            r = curve(u) - P_act[i]
-            v = d1(u)
-            return (np.einsum("ij,ij->i", v, r),
-                    np.einsum("ij,ij->i", d2(u), r) + np.einsum("ij,ij->i", v, v))
-
-        def distance(u):
-            return np.linalg.norm(curve(u) - P_act, axis=1)
-        return self._search(u0, window, window_length, gradient_and_curvature, distance,
-                            lambda k, i: np.linalg.norm(self.P[k] - P_act[i], axis=1),
-                            self._tip_tree, P_act)
+        return self._search(u0, window, window_length, P_act, _TIP)[0]
 
     def closest_orientation(self, O_act: np.ndarray, w0: np.ndarray | None = None,
                             window: float = DEFAULT_WINDOW,
                             window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
         """Parameter w* of the reference orientation closest to each ``O_act`` (spec Eq. 21):
         O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``."""
-        curve, d1, d2 = (self.orientation, self.orientation.derivative(),
-                         self.orientation.derivative(2))
-
-        def gradient_and_curvature(w, i):
-            # minimize -O(w) . O_act; |O(w)| = 1 up to the interpolation's round-off
-            return (-np.einsum("ij,ij->i", d1(w), O_act[i]),
-                    -np.einsum("ij,ij->i", d2(w), O_act[i]))
-        return self._search(w0, window, window_length, gradient_and_curvature,
-                            lambda w: angle_between(curve(w), O_act),
-                            lambda k, i: angle_between(self.O[k], O_act[i]),
-                            self._orientation_tree, O_act)
+        return self._search(w0, window, window_length, O_act, _ORIENTATION)[0]
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
                window: float = DEFAULT_WINDOW,
@@ -142,21 +120,22 @@ class ReferencePath:
         """Contour errors of actual tips ``P_act`` and orientations ``O_act`` sampled at
         ``t`` (default: the reference's own time stamps)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        u = self.closest_tip(P_act, t, window, window_length)
-        w = self.closest_orientation(O_act, t, window, window_length)
-        tip = np.linalg.norm(self.tip(u) - P_act, axis=1)
-        orientation = angle_between(self.orientation(w), O_act)
+        u, tip = self._search(t, window, window_length, P_act, _TIP)
+        w, orientation = self._search(t, window, window_length, O_act, _ORIENTATION)
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
 
     @cached_property
-    def _tip_tree(self) -> cKDTree:
-        return cKDTree(self.P)
+    def _tip_arrays(self):
+        return _curve_arrays(self.tip, self.P)
 
     @cached_property
-    def _orientation_tree(self) -> cKDTree:
-        # chord length on the unit sphere is monotone in the angle
-        return cKDTree(self.O)
+    def _orientation_arrays(self):
+        return _curve_arrays(self.orientation, self.O)
+
+    @cached_property
+    def _own_windows(self):
+        return self._window(self.t, DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH)
 
     @cached_property
     def progress(self) -> np.ndarray:
@@ -183,67 +162,22 @@ class ReferencePath:
         longest = MAX_WINDOW_FACTOR * max(reach, 1)
         return base, np.maximum(lo, base - longest), np.minimum(hi, base + longest)
 
-    def _search(self, start, window, window_length, gradient_and_curvature, distance,
-                sample_distance, tree, points):
-        """Closest parameter in each window: find the nearest reference sample in the window
-        (``tree``, a k-d tree of the reference samples, queried with the actual ``points``;
-        ``sample_distance(k, i)``: distance of actual point i to reference sample k), refine
-        by Newton's method, and keep the refined point unless the sample itself is nearer."""
+    def _search(self, start, window, window_length, points, kind):
+        """Closest parameter in each window and the distance there (mm or rad): the nearest reference sample in the window
+        (an exact scan that skips what the triangle inequality rules out), refined by
+        Newton's method on the spline; the refined point is kept unless the sample itself is
+        nearer. Compiled, one sample per iteration, spread over the available cores."""
         start = self.t if start is None else np.asarray(start, dtype=float)
-        base, lo, hi = self._window(start, window, window_length)
-        everyone = np.arange(base.size)
-        # The NEIGHBOURS nearest samples overall, nearest first: if any lies in the window,
-        # the first such is the nearest sample in the window (a nearer one would be listed).
-        _, near = tree.query(points, k=min(NEIGHBOURS, self.t.size))
-        in_window = (near >= lo[:, None]) & (near <= hi[:, None])
-        found = in_window.any(axis=1)
-        best_k = np.where(found, near[everyone, np.argmax(in_window, axis=1)], base)
-        # Where the path comes back near itself more than NEIGHBOURS times, scan the window.
-        missing = np.flatnonzero(~found)
-        if missing.size:
-            best = sample_distance(base[missing], missing)
-            for offset in range(int((lo - base)[missing].min()),
-                                int((hi - base)[missing].max()) + 1):
-                k = base[missing] + offset
-                inside = (k >= lo[missing]) & (k <= hi[missing])
-                i = missing[inside]
-                d = sample_distance(k[inside], i)
-                better = d < best[inside]
-                best[np.flatnonzero(inside)[better]] = d[better]
-                best_k[i[better]] = k[inside][better]
-        # The minimum lies within one sample of the best sample: bracket it there and refine
-        # by Newton's method safeguarded with bisection on the sign of the gradient.
-        a = self.t[np.maximum(best_k - 1, lo)]
-        b = self.t[np.minimum(best_k + 1, hi)]
-        g_a, _ = gradient_and_curvature(a, everyone)
-        g_b, _ = gradient_and_curvature(b, everyone)
-        interior = (g_a < 0) & (g_b > 0)
-        # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
-        # stands still) take bounded Newton / gradient steps inside the window.
-        u_lo, u_hi = self.t[lo], self.t[hi]
-        u = self.t[best_k].copy()
-        # Samples leave the iteration once their step falls below PARAMETER_TOLERANCE.
-        active = everyone
-        for _ in range(NEWTON_ITERATIONS):
-            ua, aa, bb = u[active], a[active], b[active]
-            g, c = gradient_and_curvature(ua, active)
-            bb = np.where(g > 0, ua, bb)
-            aa = np.where(g > 0, aa, ua)
-            a[active], b[active] = aa, bb
-            newton = ua - g / np.where(c > 0, c, np.inf)
-            inside = (c > 0) & (newton > aa) & (newton < bb)
-            bracketed = np.where(inside, newton, 0.5 * (aa + bb))
-            free_step = np.where(c > 0, -g / np.where(c > 0, c, 1.0), -np.sign(g) * MAX_STEP)
-            free = np.clip(ua + np.clip(free_step, -MAX_STEP, MAX_STEP), u_lo[active],
-                           u_hi[active])
-            u_new = np.where(interior[active], bracketed, free)
-            u[active] = u_new
-            active = active[np.abs(u_new - ua) > PARAMETER_TOLERANCE]
-            if active.size == 0:
-                break
-        candidates = [u, self.t[best_k]]
-        values = np.stack([distance(c) for c in candidates])
-        return np.choose(np.argmin(values, axis=0), candidates)
+        if (window, window_length) == (DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH) and (
+                start is self.t or (start.shape == self.t.shape and np.array_equal(start, self.t))):
+            base, lo, hi = self._own_windows    # the usual case: searched at its own samples
+        else:
+            base, lo, hi = self._window(start, window, window_length)
+        breaks, coef, samples, chord = (self._tip_arrays if kind == _TIP
+                                        else self._orientation_arrays)
+        points = np.ascontiguousarray(points, dtype=float)
+        return _closest_parameters(kind, self.t, samples, chord, breaks, coef, points,
+                                   base, lo, hi)
 
 
 def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
@@ -252,3 +186,251 @@ def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
     """Contour errors of actual axis positions ``q_act`` (N, 5) against ``reference``."""
     P_act, O_act = kinematics.forward(q_act)
     return reference.errors(P_act, O_act, t, window, window_length)
+
+
+def _curve_arrays(curve: BSpline, samples: np.ndarray):
+    """What the compiled search needs of a reference curve: its polynomial pieces (breaks and
+    Taylor coefficients at each break, highest power first, shape (pieces, k + 1, 3)), the
+    samples and their cumulative chord length."""
+    knots = np.ascontiguousarray(curve.t, dtype=float)
+    distinct = np.concatenate([[True], np.diff(knots) > 0])
+    breaks = knots[distinct]
+    # the span of each piece: the last copy of its left break, knots[span] <= x < knots[span+1]
+    spans = np.flatnonzero(distinct)[1:] - 1
+    coef = _taylor_coefficients(knots, np.ascontiguousarray(curve.c, dtype=float), curve.k,
+                                breaks, spans)
+    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
+    return breaks, coef, np.ascontiguousarray(samples), chord
+
+
+@numba.njit(cache=True, parallel=True)
+def _taylor_coefficients(knots, control, degree, breaks, spans):
+    """Taylor coefficients / m! of a B-spline at the left end of each piece, highest power
+    first: the derivatives' control points by differencing (Piegl & Tiller, The NURBS Book,
+    A3.3) on the bases of every degree from one Cox-de Boor triangle (A2.2)."""
+    dims = control.shape[1]
+    pieces = breaks.size - 1
+    coef = np.empty((pieces, degree + 1, dims))
+    for chunk in numba.prange((pieces + _CHUNK - 1) // _CHUNK):
+        basis = np.zeros((degree + 1, degree + 1))   # basis[q, r] = N_{span-q+r, q}(x)
+        left = np.zeros(degree + 1)
+        right = np.zeros(degree + 1)
+        points = np.zeros((degree + 1, degree + 1, dims))
+        for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
+            _taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
+                                    right, points, coef[j])
+    return coef
+
+
+@numba.njit(cache=True)
+def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out):
+    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[degree - m]."""
+    dims = control.shape[1]
+    basis[0, 0] = 1.0
+    for q in range(1, degree + 1):
+        left[q] = x - knots[span + 1 - q]
+        right[q] = knots[span + q] - x
+        saved = 0.0
+        for r in range(q):
+            temp = basis[q - 1, r] / (right[r + 1] + left[q - r])
+            basis[q, r] = saved + right[r + 1] * temp
+            saved = left[q - r] * temp
+        basis[q, q] = saved
+    first = span - degree
+    for i in range(degree + 1):
+        points[0, i] = control[first + i]
+    factorial = 1.0
+    for m in range(degree + 1):
+        if m > 0:
+            factorial *= m
+            for i in range(degree + 1 - m):
+                scale = (degree - m + 1) / (knots[first + i + degree + 1]
+                                            - knots[first + i + m])
+                for d in range(dims):
+                    points[m, i, d] = scale * (points[m - 1, i + 1, d] - points[m - 1, i, d])
+        for d in range(dims):
+            total = 0.0
+            for i in range(degree + 1 - m):
+                total += basis[degree - m, i] * points[m, i, d]
+            out[degree - m, d] = total / factorial
+
+
+@numba.njit(cache=True)
+def _evaluate(breaks, coef, x, hint, out):
+    """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
+    (Horner's scheme carried for the derivatives), the piece found by walking from ``hint``
+    (parameters searched lie within a few pieces of a known sample)."""
+    last = coef.shape[0] - 1
+    piece = min(max(hint, 0), last)
+    while piece > 0 and breaks[piece] > x:
+        piece -= 1
+    while piece < last and breaks[piece + 1] <= x:
+        piece += 1
+    s = x - breaks[piece]
+    for d in range(3):
+        value = coef[piece, 0, d]
+        first = 0.0
+        second = 0.0
+        for p in range(1, coef.shape[1]):
+            second = second * s + first
+            first = first * s + value
+            value = value * s + coef[piece, p, d]
+        out[0, d] = value
+        out[1, d] = first
+        out[2, d] = 2.0 * second
+
+
+@numba.njit(cache=True)
+def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
+    """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
+    -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
+    _evaluate(breaks, coef, x, hint, out)
+    g = 0.0
+    c = 0.0
+    if kind == 0:
+        for d in range(3):
+            r = out[0, d] - point[d]
+            g += out[1, d] * r
+            c += out[2, d] * r + out[1, d] * out[1, d]
+    else:
+        for d in range(3):
+            g -= out[1, d] * point[d]
+            c -= out[2, d] * point[d]
+    return g, c
+
+
+@numba.njit(cache=True)
+def _distance(kind, value, point):
+    """Tip: Euclidean distance; orientation: the angle (atan2 of |a x b| and a . b, as
+    ``angle_between``)."""
+    if kind == 0:
+        s = 0.0
+        for d in range(3):
+            s += (value[d] - point[d]) ** 2
+        return np.sqrt(s)
+    cx = value[1] * point[2] - value[2] * point[1]
+    cy = value[2] * point[0] - value[0] * point[2]
+    cz = value[0] * point[1] - value[1] * point[0]
+    dot = value[0] * point[0] + value[1] * point[1] + value[2] * point[2]
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), dot)
+
+
+@numba.njit(cache=True, inline="always")
+def _chord(samples, k, point):
+    s = 0.0
+    for d in range(3):
+        s += (samples[k, d] - point[d]) ** 2
+    return np.sqrt(s)
+
+
+@numba.njit(cache=True)
+def _nearest_sample(samples, chord, point, base, lo, hi):
+    """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
+    that is also the smallest angle). Exact: no sample within chord length d_j - best of a
+    sample j at distance d_j can be nearer than best (triangle inequality), so the scan jumps
+    past them by a galloping search on the cumulative chord length."""
+    best_k = base
+    best = _chord(samples, base, point)
+    # round-off of the cumulative chord length: never skip a sample by it
+    margin = 1e-12 * (1.0 + abs(chord[lo]) + abs(chord[hi]))
+    for direction in (1, -1):
+        bound = hi if direction > 0 else lo
+        j = base + direction
+        while (j - bound) * direction <= 0:
+            d = _chord(samples, j, point)
+            if d < best:
+                best = d
+                best_k = j
+            reach = d - best - margin
+            if reach <= 0.0:
+                j += direction
+                continue
+            target = chord[j] + direction * reach
+            j = _first_reaching(chord, j, direction, bound, target)
+    return best_k
+
+
+@numba.njit(cache=True, inline="always")
+def _first_reaching(chord, j, direction, bound, target):
+    """First index m beyond j (in ``direction``, up to ``bound``) with chord[m] at or past
+    ``target``; bound + direction if none."""
+    previous = j
+    step = 1
+    while True:
+        m = j + direction * step
+        if (m - bound) * direction >= 0:
+            m = bound
+        if (chord[m] - target) * direction >= 0.0:
+            while abs(m - previous) > 1:
+                mid = (m + previous) // 2
+                if (chord[mid] - target) * direction >= 0.0:
+                    m = mid
+                else:
+                    previous = mid
+            return m
+        if m == bound:
+            return bound + direction
+        previous = m
+        step *= 2
+
+
+@numba.njit(cache=True, parallel=True)
+def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo, hi):
+    """Closest parameter of every point (see ReferencePath._search), in chunks of samples
+    spread over the cores."""
+    n = points.shape[0]
+    parameter = np.empty(n)
+    distance = np.empty(n)
+    n_chunks = (n + _CHUNK - 1) // _CHUNK
+    for chunk in numba.prange(n_chunks):
+        out = np.empty((3, 3))
+        for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
+            parameter[i], distance[i] = _closest_parameter(
+                kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out)
+    return parameter, distance
+
+
+@numba.njit(cache=True)
+def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out):
+    """Closest parameter of one point within the sample window [lo, hi], and its distance."""
+    k = _nearest_sample(samples, chord, point, base, lo, hi)
+    # The minimum lies within one sample of the best sample: bracket it there and refine
+    # by Newton's method safeguarded with bisection on the sign of the gradient.
+    hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
+    a = t[max(k - 1, lo)]
+    b = t[min(k + 1, hi)]
+    g_a, _ = _gradient_curvature(kind, breaks, coef, a, hint, point, out)
+    g_b, _ = _gradient_curvature(kind, breaks, coef, b, hint, point, out)
+    interior = g_a < 0.0 and g_b > 0.0
+    # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
+    # stands still) take bounded Newton / gradient steps inside the window.
+    u_lo, u_hi = t[lo], t[hi]
+    u = t[k]
+    for _ in range(NEWTON_ITERATIONS):
+        g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
+        if c > 0.0 and abs(g) <= PARAMETER_TOLERANCE * c:
+            # converged: the last Newton step is below the tolerance (taking it as a bracket
+            # test would fail in round-off where it does not move u, and bisect away)
+            u = min(max(u - g / c, u_lo), u_hi)
+            break
+        if g > 0.0:
+            b = u
+        else:
+            a = u
+        if interior:
+            newton = u - g / c if c > 0.0 else u
+            u_new = newton if (c > 0.0 and a < newton < b) else 0.5 * (a + b)
+        else:
+            step = -g / c if c > 0.0 else -np.sign(g) * MAX_STEP
+            u_new = min(max(u + min(max(step, -MAX_STEP), MAX_STEP), u_lo), u_hi)
+        converged = abs(u_new - u) <= PARAMETER_TOLERANCE
+        u = u_new
+        if converged:
+            break
+    _evaluate(breaks, coef, u, hint, out)
+    # the curve interpolates the samples: its distance at t[k] is the sample's
+    refined = _distance(kind, out[0], point)
+    at_sample = _distance(kind, samples[k], point)
+    if refined <= at_sample:
+        return u, refined
+    return t[k], at_sample

@@ -12,11 +12,14 @@ one multiplier per knot for jerk continuity, so a fit costs O(samples) per round
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.interpolate import PPoly
-from scipy.linalg import solve_banded
+from scipy.linalg.lapack import dgbsv
 
 from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError
@@ -52,9 +55,9 @@ _JERK_GRAM = np.array([
 # Third derivative of the basis at tau = 0 and tau = 1.
 _JERK_START = np.array([-60.0, -36.0, -9.0, 60.0, -24.0, 3.0])
 _JERK_END = np.array([-60.0, -24.0, -3.0, 60.0, -36.0, 9.0])
-_P = np.array([0, 3])        # positions of the fixed knot values in c
 _Y = np.array([1, 2, 4, 5])  # positions of the unknown velocities / accelerations in c
 _BAND = 5                    # half bandwidth of the KKT matrix with 3 unknowns per knot
+_DIAGONAL = 2 * _BAND        # row of the diagonal in gbsv's band storage
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,7 @@ class SplineFit:
 
 
 def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 500,
-                 name: str = "x") -> SplineFit:
+                 name: str = "x", initial_knots: np.ndarray | None = None) -> SplineFit:
     """Fit a minimum-jerk C3 quintic spline to samples ``x(t)`` within ``tol``.
 
     Parameters
@@ -105,6 +108,11 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         Safety bound on knot-insertion rounds.
     name : str
         Axis name for messages.
+    initial_knots : ndarray of int, optional
+        Sample indices to start from instead of the uniform first fit, e.g. the knots of a
+        fit of a similar command (a corrected command needs at least the knots of the
+        original one: starting there saves the rounds that would find them again). The
+        first and last sample are always knots.
 
     Returns
     -------
@@ -125,15 +133,26 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         raise ValueError(f"{name}: tolerance must be > 0, got {tol!r}")
 
     n_samples = t.size
-    n_segments = max(3, (n_samples - 1) // INITIAL_SAMPLES_PER_SEGMENT)
-    knots = np.unique(np.round(np.linspace(0, n_samples - 1, n_segments + 1)).astype(np.intp))
+    if n_samples > 3 * INITIAL_SAMPLES_PER_SEGMENT:
+        # every INITIAL_SAMPLES_PER_SEGMENT-th sample from the first: a piece of a long
+        # program cut at a multiple of it starts from the same knots as the whole program
+        knots = np.append(np.arange(0, n_samples - 1, INITIAL_SAMPLES_PER_SEGMENT),
+                          n_samples - 1).astype(np.intp)
+    else:
+        n_segments = max(3, (n_samples - 1) // INITIAL_SAMPLES_PER_SEGMENT)
+        knots = np.unique(np.round(np.linspace(0, n_samples - 1, n_segments + 1)).astype(np.intp))
+    if initial_knots is not None:
+        given = np.asarray(initial_knots, dtype=np.intp)
+        given = given[(given > 0) & (given < n_samples - 1)]
+        if given.size >= 2:
+            knots = _sorted_union(np.array([0, n_samples - 1], dtype=np.intp), np.sort(given))
     for rounds in range(1, max_rounds + 1):
         coef = _solve_min_jerk(t[knots], x[knots])
         deviation = _evaluate_at_samples(coef, t, knots) - x
         outside = np.abs(deviation) > tol
         if not outside.any():
             break
-        new = np.union1d(knots, _worst_of_each_stretch(np.abs(deviation), outside))
+        new = _sorted_union(knots, _worst_of_each_stretch(np.abs(deviation), outside))
         if new.size == knots.size:
             # the worst samples are knots already: what is left is round-off of the values
             worst = int(np.argmax(np.abs(deviation)))
@@ -170,19 +189,43 @@ class AxisFits:
     def n_knots(self) -> tuple[int, ...]:
         return tuple(fit.n_knots for fit in self.fits)
 
+    @property
+    def knot_indices(self) -> tuple[np.ndarray, ...]:
+        return tuple(fit.knot_index for fit in self.fits)
+
     def __call__(self, t, nu: int = 0) -> np.ndarray:
         """Evaluate all five splines: returns shape ``t.shape + (5,)``."""
         return np.stack([fit.spline(t, nu) for fit in self.fits], axis=-1)
 
 
 def fit_axes(t: np.ndarray, q: np.ndarray, *, tol_linear: float = DEFAULT_TOL_LINEAR,
-             tol_rotary: float = DEFAULT_TOL_ROTARY) -> AxisFits:
-    """Fit each of the five axis commands ``q[:, i]`` with :func:`fit_min_jerk`."""
+             tol_rotary: float = DEFAULT_TOL_ROTARY,
+             initial_knots: tuple | None = None) -> AxisFits:
+    """Fit each of the five axis commands ``q[:, i]`` with :func:`fit_min_jerk`
+    (``initial_knots``: one knot-index array per axis, e.g. ``AxisFits.knot_indices`` of a
+    fit of a similar command)."""
     q = np.asarray(q, dtype=float)
-    fits = tuple(
-        fit_min_jerk(t, q[:, i], tol_rotary if axis in ROTARY_AXES else tol_linear, name=axis)
-        for i, axis in enumerate(AXES))
-    return AxisFits(fits)
+
+    def fit(i):
+        return fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
+                            name=AXES[i],
+                            initial_knots=None if initial_knots is None else initial_knots[i])
+    return AxisFits(tuple(map_axes(fit)))
+
+
+def map_axes(work) -> list:
+    """[work(0), ..., work(4)], the axes spread over the cores: the fits' banded solves
+    (LAPACK) and compiled loops release the interpreter lock, and the axes are independent."""
+    workers = min(len(AXES), os.cpu_count() or 1)
+    if workers == 1:
+        return [work(i) for i in range(len(AXES))]
+    # rotary axes first: at their finer tolerance they need the most knots (the longest
+    # jobs first keeps the cores evenly busy)
+    order = [i for i, axis in enumerate(AXES) if axis in ROTARY_AXES][::-1]
+    order += [i for i, axis in enumerate(AXES) if axis not in ROTARY_AXES]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        done = dict(zip(order, pool.map(work, order)))
+    return [done[i] for i in range(len(AXES))]
 
 
 def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
@@ -195,48 +238,10 @@ def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
     n = t_knots.size - 1
     time_scale = (t_knots[-1] - t_knots[0]) / n  # keeps the scaled segment lengths near 1
     h = np.diff(t_knots) / time_scale
-    size = 3 * (n + 1)
-    ab = np.zeros((2 * _BAND + 1, size))
-    rhs = np.zeros(size)
-
-    # Cost sum_i c_i^T G c_i / h_i^5 with c_i = E_p p_i + diag(s_i) y_i, s_i = (h, h^2, h, h^2).
-    s = np.stack([h, h * h, h, h * h], axis=1)                      # (n, 4)
-    inv_h5 = h ** -5
-    p = np.stack([x_knots[:-1], x_knots[1:]], axis=1)              # (n, 2)
-    hess = _JERK_GRAM[np.ix_(_Y, _Y)][None] * s[:, :, None] * s[:, None, :] * inv_h5[:, None, None]
-    grad = (p @ _JERK_GRAM[np.ix_(_P, _Y)]) * s * inv_h5[:, None]   # (n, 4)
-    base = 3 * np.arange(n)
-    var = np.stack([base, base + 1, base + 3, base + 4], axis=1)    # (n, 4) unknown indices
-    rows = np.broadcast_to(var[:, :, None], hess.shape)
-    cols = np.broadcast_to(var[:, None, :], hess.shape)
-    np.add.at(ab, (_BAND + rows - cols, cols), hess)
-    np.add.at(rhs, var, -grad)
-
-    # Jerk continuity: segment i adds +jerk(end) to the row of knot i+1 and -jerk(start) to
-    # the row of knot i; knots 0 and n get only one term, which makes them "jerk = 0".
-    inv_h3 = h ** -3
-    end_y = _JERK_END[_Y][None] * s * inv_h3[:, None]
-    start_y = _JERK_START[_Y][None] * s * inv_h3[:, None]
-    end_p = (p @ _JERK_END[_P]) * inv_h3
-    start_p = (p @ _JERK_START[_P]) * inv_h3
-    mult_next = (base + 5)[:, None]
-    mult_this = (base + 2)[:, None]
-    for mult, coef_y, sign in ((mult_next, end_y, 1.0), (mult_this, start_y, -1.0)):
-        row = np.broadcast_to(mult, var.shape)
-        np.add.at(ab, (_BAND + row - var, var), sign * coef_y)  # constraint rows
-        np.add.at(ab, (_BAND + var - row, row), sign * coef_y)  # their transposes
-    np.add.at(rhs, base + 5, -end_p)
-    np.add.at(rhs, base + 2, start_p)
-
-    # At rest at both ends: replace the rows of v_0, a_0, v_n, a_n by identity rows.
-    for fixed in (0, 1, 3 * n, 3 * n + 1):
-        for col in range(max(0, fixed - _BAND), min(size, fixed + _BAND + 1)):
-            ab[_BAND + fixed - col, col] = 0.0
-        ab[_BAND, fixed] = 1.0
-        rhs[fixed] = 0.0
-
-    solution = solve_banded((_BAND, _BAND), ab, rhs, overwrite_ab=True, overwrite_b=True,
-                            check_finite=False)
+    ab, rhs = _kkt_system(h, np.ascontiguousarray(x_knots, dtype=float))
+    _, _, solution, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=True, overwrite_b=True)
+    if info != 0:  # pragma: no cover - distinct knot times make the system regular
+        raise np.linalg.LinAlgError(f"minimum-jerk system is singular (LAPACK info {info})")
     velocity = solution[0::3]
     acceleration = solution[1::3]
     coef = np.empty((n, 6))
@@ -249,20 +254,86 @@ def _solve_min_jerk(t_knots: np.ndarray, x_knots: np.ndarray) -> np.ndarray:
     return coef
 
 
-def _evaluate_at_samples(coef: np.ndarray, t: np.ndarray, knots: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True, nogil=True)
+def _kkt_system(h, x_knots):
+    """Banded KKT matrix and right-hand side, in the band storage LAPACK's gbsv factors in
+    place (half bandwidth _BAND, _BAND more rows for the fill-in of pivoting).
+
+    Cost sum_i c_i^T G c_i / h_i^5 with c_i = E_p p_i + diag(s_i) y_i, s_i = (h, h^2, h, h^2):
+    each segment adds its 4 x 4 Hessian block on the velocities and accelerations of its two
+    knots. Jerk continuity: segment i adds +jerk(end) to the multiplier row of knot i + 1 and
+    -jerk(start) to that of knot i; knots 0 and n get only one term, which makes them
+    "jerk = 0". At rest at both ends: the rows of v_0, a_0, v_n, a_n become identity rows.
+    """
+    n = h.size
+    size = 3 * (n + 1)
+    ab = np.zeros((3 * _BAND + 1, size))
+    rhs = np.zeros(size)
+    var = np.empty(4, dtype=np.intp)
+    scale = np.empty(4)
+    for i in range(n):
+        hi = h[i]
+        inv_h5 = hi ** -5
+        inv_h3 = hi ** -3
+        p0 = x_knots[i]
+        p1 = x_knots[i + 1]
+        base = 3 * i
+        var[0], var[1], var[2], var[3] = base, base + 1, base + 3, base + 4
+        scale[0], scale[1], scale[2], scale[3] = hi, hi * hi, hi, hi * hi
+        for a in range(4):
+            ya = _Y[a]
+            for b in range(4):
+                ab[_DIAGONAL + var[a] - var[b], var[b]] += (
+                    _JERK_GRAM[ya, _Y[b]] * scale[a] * scale[b] * inv_h5)
+            rhs[var[a]] -= (p0 * _JERK_GRAM[0, ya] + p1 * _JERK_GRAM[3, ya]) * scale[a] * inv_h5
+            end = _JERK_END[ya] * scale[a] * inv_h3
+            start = -_JERK_START[ya] * scale[a] * inv_h3
+            ab[_DIAGONAL + base + 5 - var[a], var[a]] += end      # constraint rows
+            ab[_DIAGONAL + var[a] - base - 5, base + 5] += end    # their transposes
+            ab[_DIAGONAL + base + 2 - var[a], var[a]] += start
+            ab[_DIAGONAL + var[a] - base - 2, base + 2] += start
+        rhs[base + 5] -= (p0 * _JERK_END[0] + p1 * _JERK_END[3]) * inv_h3
+        rhs[base + 2] += (p0 * _JERK_START[0] + p1 * _JERK_START[3]) * inv_h3
+    for fixed in (0, 1, 3 * n, 3 * n + 1):
+        for col in range(max(0, fixed - _BAND), min(size, fixed + _BAND + 1)):
+            ab[_DIAGONAL + fixed - col, col] = 0.0
+        ab[_DIAGONAL, fixed] = 1.0
+        rhs[fixed] = 0.0
+    return ab, rhs
+
+
+@numba.njit(cache=True, nogil=True)
+def _evaluate_at_samples(coef, t, knots):
     """Spline value at every sample; the knots are samples, so each segment's samples are a
-    contiguous run and ``np.repeat`` replaces a search."""
-    counts = np.diff(knots)
-    counts[-1] += 1                                                # the last sample
-    start = np.repeat(t[knots[:-1]], counts)
-    length = np.repeat(np.diff(t[knots]), counts)
-    tau = (t - start) / length
-    monomial = (coef @ _HERMITE_MONOMIAL.T).T                      # (6, n), powers ascending
-    value = np.repeat(monomial[5], counts)
-    for power in range(4, -1, -1):
-        value *= tau
-        value += np.repeat(monomial[power], counts)
+    contiguous run."""
+    value = np.empty(t.size)
+    monomial = np.empty(6)
+    for i in range(knots.size - 1):
+        for power in range(6):
+            m = 0.0
+            for j in range(6):
+                m += _HERMITE_MONOMIAL[power, j] * coef[i, j]
+            monomial[power] = m
+        start = t[knots[i]]
+        length = t[knots[i + 1]] - start
+        stop = knots[i + 1] + 1 if i == knots.size - 2 else knots[i + 1]
+        for k in range(knots[i], stop):
+            tau = (t[k] - start) / length
+            v = monomial[5]
+            for power in range(4, -1, -1):
+                v = v * tau + monomial[power]
+            value[k] = v
     return value
+
+
+def _sorted_union(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Union of two sorted index arrays, sorted (np.union1d hashes: 10x slower here)."""
+    merged = np.concatenate([a, b])
+    merged.sort(kind="stable")
+    keep = np.empty(merged.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(merged[1:], merged[:-1], out=keep[1:])
+    return merged[keep]
 
 
 def _worst_of_each_stretch(abs_deviation: np.ndarray, outside: np.ndarray) -> np.ndarray:

@@ -22,8 +22,9 @@ from math import factorial
 import numpy as np
 from scipy.interpolate import PPoly
 
-from ..machine.drives import LinearErrorModel
-from .splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_axes
+from ..machine.drives import AXES, ROTARY_AXES, LinearErrorModel
+from .splinefit import (DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_min_jerk,
+                        map_axes)
 
 #: Poles closer than this (relative to their magnitude) are treated as one repeated pole.
 POLE_CLUSTER_RTOL = 1e-4
@@ -274,12 +275,12 @@ class AxisPrediction:
     errors: tuple[TrackingError, ...]
 
     def __call__(self, t) -> np.ndarray:
-        return np.stack([err(t) for err in self.errors], axis=-1)
+        return np.stack(map_axes(lambda i: self.errors[i](t)), axis=-1)
 
 
 def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
-                     tol_linear: float | None = None, tol_rotary: float | None = None
-                     ) -> AxisPrediction:
+                     tol_linear: float | None = None, tol_rotary: float | None = None,
+                     initial_knots: tuple | None = None) -> AxisPrediction:
     """Fit each axis command (spec section 3) and predict its tracking error (section 4).
 
     Parameters
@@ -292,8 +293,19 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
         Closed-loop error models, e.g. ``machine.controller(name).error_models(machine.drives)``.
     tol_linear, tol_rotary : float, optional
         Fit tolerances (defaults 1 um, 1 urad).
+    initial_knots : tuple of 5 int arrays, optional
+        Knots to start each axis's fit from (``AxisPrediction.fits.knot_indices`` of a
+        prediction of a similar command, see :func:`fit_min_jerk`).
     """
-    fits = fit_axes(t, q, tol_linear=DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear,
-                    tol_rotary=DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary)
-    errors = tuple(tracking_error(fit.spline, model) for fit, model in zip(fits, models))
-    return AxisPrediction(fits=fits, errors=errors)
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    tol_linear = DEFAULT_TOL_LINEAR if tol_linear is None else tol_linear
+    tol_rotary = DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary
+
+    def axis(i):
+        fit = fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
+                           name=AXES[i],
+                           initial_knots=None if initial_knots is None else initial_knots[i])
+        return fit, tracking_error(fit.spline, models[i])
+    fits, errors = zip(*map_axes(axis))
+    return AxisPrediction(fits=AxisFits(tuple(fits)), errors=tuple(errors))

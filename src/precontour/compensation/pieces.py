@@ -1,0 +1,238 @@
+"""Long programs in pieces: prediction and compensation of any length in bounded memory.
+
+A program of hours (10^7 samples and more) is cut into pieces of about PIECE_SAMPLES samples,
+each processed on its own with an overlap either side that is thrown away. Cuts are put in the
+middle of a stop (all axes at rest) where the program has one near the planned cut.
+
+Why the overlap makes the seams invisible: the tracking error is the response of a stable
+linear system (spec section 4), so whatever a piece gets wrong at its start (it sees the axes
+at rest before its first sample, where they were in fact moving) dies out like the slowest
+pole, exp(-sigma t): after ln(1 / DECAY) / sigma it has fallen by DECAY = 1e-9, from 1 m (more
+than any axis travels) to 1 nm. A compensation pass chains its predictions (the commands it
+corrects depend on predicted errors, which depend on earlier commands), so the overlap is that
+decay time once per prediction in the chain, plus the closest-point search's widest window
+and the smoothing of the correction. The same length is kept after a piece's end, where the
+spline fit's end conditions (at rest) bend the last few knots. ``tests/compensation/
+test_pieces.py`` checks that cutting changes nothing beyond the fit tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import ceil, log
+
+import numpy as np
+
+from ..machine.drives import LinearErrorModel
+from ..prediction.contour import (DEFAULT_WINDOW, MAX_WINDOW_FACTOR, ContourErrors,
+                                  ReferencePath)
+from ..prediction.splinefit import INITIAL_SAMPLES_PER_SEGMENT
+from ..prediction.tracking import predict_tracking
+from ..trajectory.sampled import Trajectory
+from .precompensate import BLEND_SPREAD, CompensationResult, compensate
+
+#: Samples kept per piece (the piece itself is longer by its overlaps).
+PIECE_SAMPLES = 250_000
+#: Trajectories up to this many samples are processed at once.
+AT_ONCE_SAMPLES = 500_000
+#: Factor by which a start-up transient must have decayed inside the overlap.
+DECAY = 1e-9
+#: Extra overlap for the spline fits' end effects, s (a few knots).
+SPLINE_MARGIN = 0.5
+#: A stop: every axis within these (mm, rad) of its value for at least STOP_TIME.
+STOP_TOLERANCE_LINEAR = 1e-9
+STOP_TOLERANCE_ROTARY = 1e-12
+STOP_TIME = 0.05
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Samples [start, stop) are processed; [keep_start, keep_stop) of them are kept."""
+
+    start: int
+    stop: int
+    keep_start: int
+    keep_stop: int
+
+
+def slowest_decay_rate(models: tuple[LinearErrorModel, ...]) -> float:
+    """sigma = min over the axes of -Re(pole) of the error models, 1/s."""
+    rates = [-np.max(np.roots(model.den).real) for model in models]
+    sigma = float(min(rates))
+    if not sigma > 0:
+        raise ValueError("an error model is not stable: it has a pole with Re >= 0")
+    return sigma
+
+
+def overlap_samples(models: tuple[LinearErrorModel, ...], ts: float, chained: int) -> int:
+    """Overlap (samples) for ``chained`` predictions in a row (1 for a prediction and its
+    contour errors, 2 per compensation pass + 1): see the module docstring."""
+    seconds = (chained * log(1.0 / DECAY) / slowest_decay_rate(models)
+               + MAX_WINDOW_FACTOR * DEFAULT_WINDOW + 2 * BLEND_SPREAD + SPLINE_MARGIN)
+    return int(ceil(seconds / ts))
+
+
+def plan_pieces(n_samples: int, overlap: int, q_of=None,
+                piece_samples: int = PIECE_SAMPLES, ts: float = 1e-3) -> list[Piece]:
+    """Cut [0, n_samples) into pieces of about ``piece_samples`` kept samples.
+
+    ``q_of(start, stop)`` returns the axis commands of those samples; where given, each cut is
+    moved to the middle of the longest stop within the last quarter before it, if any.
+    """
+    if n_samples <= piece_samples + piece_samples // 2:
+        return [Piece(0, n_samples, 0, n_samples)]
+    cuts = [0]
+    while n_samples - cuts[-1] > piece_samples + piece_samples // 2:
+        planned = cuts[-1] + piece_samples
+        cut = planned
+        if q_of is not None:
+            lo = planned - piece_samples // 4
+            stop = _longest_stop(q_of(lo, planned), ts)
+            if stop is not None:
+                cut = lo + (stop[0] + stop[1]) // 2
+        cuts.append(cut)
+    cuts.append(n_samples)
+    # pieces start on the spline fit's first knot grid (every INITIAL_SAMPLES_PER_SEGMENT-th
+    # sample), so that they start from the knots the whole program would start from
+    grid = INITIAL_SAMPLES_PER_SEGMENT
+    return [Piece(max(0, (a - overlap) // grid * grid), min(n_samples, b + overlap), a, b)
+            for a, b in zip(cuts[:-1], cuts[1:])]
+
+
+def _longest_stop(q: np.ndarray, ts: float):
+    """(first, last) sample of the longest stretch in which no axis moves, or None."""
+    tolerance = np.array([STOP_TOLERANCE_LINEAR] * 3 + [STOP_TOLERANCE_ROTARY] * 2)
+    still = np.all(np.abs(np.diff(q, axis=0)) <= tolerance, axis=1)
+    if not still.any():
+        return None
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    longest = int(np.argmax(ends - starts))
+    if (ends[longest] - starts[longest]) * ts < STOP_TIME:
+        return None
+    return int(starts[longest]), int(ends[longest])
+
+
+def _slice(traj: Trajectory, start: int, stop: int) -> Trajectory:
+    return Trajectory(traj.t[start:stop], traj.q[start:stop],
+                      None if traj.P is None else traj.P[start:stop],
+                      None if traj.O is None else traj.O[start:stop])
+
+
+@dataclass(frozen=True)
+class ProgramPrediction:
+    """Predicted tracking errors (and contour errors where the reference is known) of a whole
+    program, and the knots each axis needed (summed over the pieces)."""
+
+    e: np.ndarray
+    contour: ContourErrors | None
+    n_knots: tuple[int, ...]
+    pieces: int
+
+
+def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorModel, ...],
+                   kinematics, *, tol_linear: float | None = None,
+                   tol_rotary: float | None = None, piece_samples: int = PIECE_SAMPLES):
+    """Predict a program given only ``read(start, stop) -> Trajectory`` of its samples, piece
+    by piece; yields ``(piece, e, contour, n_knots)`` for the kept samples of each piece
+    (``contour`` None without a reference). Memory is bounded by the piece size."""
+    pieces = plan_pieces(n_samples, overlap_samples(models, ts, 1),
+                         lambda a, b: read(a, b).q, piece_samples, ts)
+    for piece in pieces:
+        part = read(piece.start, piece.stop)
+        prediction = predict_tracking(part.t, part.q, models, tol_linear=tol_linear,
+                                      tol_rotary=tol_rotary)
+        keep = slice(piece.keep_start - piece.start, piece.keep_stop - piece.start)
+        e = prediction(part.t)
+        n_knots = tuple(int(np.count_nonzero((fit.knot_index >= keep.start)
+                                             & (fit.knot_index < keep.stop)))
+                        for fit in prediction.fits)
+        contour = None
+        if part.has_reference:
+            contour = _kept(ReferencePath.from_trajectory(part).errors(
+                *kinematics.forward(part.q - e)), keep)
+        yield piece, e[keep], contour, n_knots
+
+
+def predict_program(traj: Trajectory, models: tuple[LinearErrorModel, ...], kinematics, *,
+                    tol_linear: float | None = None, tol_rotary: float | None = None,
+                    piece_samples: int = PIECE_SAMPLES,
+                    at_once_samples: int = AT_ONCE_SAMPLES) -> ProgramPrediction:
+    """Tracking errors e(t) at every sample (and contour errors if ``traj`` has its
+    reference), at once up to ``at_once_samples`` samples, in pieces above."""
+    n = traj.n_samples
+    e = np.empty_like(traj.q)
+    parts = []
+    knots = np.zeros(len(models), dtype=np.int64)
+    pieces = 0
+    for piece, e_kept, contour, n_knots in predict_pieces(
+            lambda a, b: _slice(traj, a, b), n, traj.ts, models, kinematics,
+            tol_linear=tol_linear, tol_rotary=tol_rotary,
+            piece_samples=n if n <= at_once_samples else piece_samples):
+        e[piece.keep_start:piece.keep_stop] = e_kept
+        knots += n_knots
+        pieces += 1
+        if contour is not None:
+            parts.append(contour)
+    return ProgramPrediction(e=e, contour=_join(parts) if parts else None,
+                             n_knots=tuple(int(k) for k in knots), pieces=pieces)
+
+
+def compensate_pieces(read, n_samples: int, ts: float, kinematics,
+                      models: tuple[LinearErrorModel, ...], *,
+                      piece_samples: int = PIECE_SAMPLES, **options):
+    """:func:`compensate` a program given only ``read(start, stop) -> Trajectory`` (with its
+    reference), piece by piece; yields ``(piece, result)`` where ``result`` is the piece's
+    :class:`CompensationResult` cut to its kept samples. Each piece keeps its own best
+    number of passes. Memory is bounded by the piece size."""
+    options.pop("progress", None)
+    chained = 2 * options.get("iterations", 1) + 1
+    pieces = plan_pieces(n_samples, overlap_samples(models, ts, chained),
+                         lambda a, b: read(a, b).q, piece_samples, ts)
+    for piece in pieces:
+        result = compensate(read(piece.start, piece.stop), kinematics, models, **options)
+        keep = slice(piece.keep_start - piece.start, piece.keep_stop - piece.start)
+        yield piece, CompensationResult(
+            trajectory=_slice(result.trajectory, keep.start, keep.stop),
+            before=_kept(result.before, keep), after=_kept(result.after, keep),
+            iterations=result.iterations, history=result.history, method=result.method)
+
+
+def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
+                       piece_samples: int = PIECE_SAMPLES,
+                       at_once_samples: int = AT_ONCE_SAMPLES, **options) -> CompensationResult:
+    """:func:`compensate` of a whole program, at once up to ``at_once_samples`` samples, in
+    pieces above (``options`` as for :func:`compensate`).
+
+    In pieces, each piece keeps its own best number of passes (``iterations`` is the largest
+    of them), ``history`` holds the joined before and after, and ``progress`` is not called.
+    """
+    n = traj.n_samples
+    if n <= at_once_samples:
+        return compensate(traj, kinematics, models, **options)
+    q = np.empty_like(traj.q)
+    before, after, passes = [], [], 0
+    for piece, result in compensate_pieces(lambda a, b: _slice(traj, a, b), n, traj.ts,
+                                           kinematics, models, piece_samples=piece_samples,
+                                           **options):
+        q[piece.keep_start:piece.keep_stop] = result.trajectory.q
+        before.append(result.before)
+        after.append(result.after)
+        passes = max(passes, result.iterations)
+    before_all, after_all = _join(before), _join(after)
+    return CompensationResult(trajectory=traj.with_axes(q), before=before_all,
+                              after=after_all, iterations=passes,
+                              history=(before_all.summary(), after_all.summary()),
+                              method=options.get("method", "contour"))
+
+
+def _kept(errors: ContourErrors, keep: slice) -> ContourErrors:
+    return ContourErrors(tip=errors.tip[keep], orientation=errors.orientation[keep],
+                         tip_parameter=errors.tip_parameter[keep],
+                         orientation_parameter=errors.orientation_parameter[keep])
+
+
+def _join(parts: list[ContourErrors]) -> ContourErrors:
+    return ContourErrors(*(np.concatenate([getattr(p, name) for p in parts])
+                           for name in ("tip", "orientation", "tip_parameter",
+                                        "orientation_parameter")))
