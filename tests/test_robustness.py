@@ -197,7 +197,7 @@ def test_every_command_failing_while_writing_leaves_inputs_and_no_temporary_file
             os.kill(os.getpid(), signal.SIGTERM)
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(files.os, "replace", fail)
+    monkeypatch.setattr(files, "_rename", fail)
     if argv[0] == "compare":  # its figures take seconds to draw and are written like the rest
         import precontour.reports.compare_report as compare_report
         monkeypatch.setattr(compare_report, "_figures", lambda result: [])

@@ -223,6 +223,12 @@ def new_file_mode(path: PathLike) -> int:
         return 0o666 & ~_umask()
 
 
+def _rename(source: PathLike, target: PathLike) -> None:
+    """The atomic step of :func:`atomic_write` (its own name so that tests can make just this
+    rename fail, not every ``os.replace`` in the process)."""
+    os.replace(source, target)
+
+
 def atomic_write(path: PathLike, content: bytes | Callable[[BinaryIO], object], *,
                  inputs: Iterable[PathLike | None] = ()) -> Path:
     """Write ``content`` (bytes, or a function that writes to a binary handle) to ``path``
@@ -248,7 +254,7 @@ def atomic_write(path: PathLike, content: bytes | Callable[[BinaryIO], object], 
                     handle.write(content)
                 handle.flush()
                 os.fchmod(handle.fileno(), mode)
-            os.replace(tmp, path)
+            _rename(tmp, path)
             tmp = None
         except OSError as exc:
             raise OutputError(f"cannot write: {_reason(exc)}", source=str(path)) from None

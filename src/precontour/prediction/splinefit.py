@@ -92,6 +92,10 @@ class SplineFit:
         return self.spline(t, nu)
 
 
+#: Smallest tolerance accepted, in units in the last place of the largest |value|.
+ROUND_OFF_ULPS = 256
+
+
 def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 500,
                  name: str = "x", initial_knots: np.ndarray | None = None) -> SplineFit:
     """Fit a minimum-jerk C3 quintic spline to samples ``x(t)`` within ``tol``.
@@ -131,6 +135,13 @@ def fit_min_jerk(t: np.ndarray, x: np.ndarray, tol: float, *, max_rounds: int = 
         raise InputError("time must be strictly increasing", field=name)
     if not tol > 0:
         raise ValueError(f"{name}: tolerance must be > 0, got {tol!r}")
+    # Below a few hundred ulps of the values the fit can only interpolate every sample: the
+    # tolerance is round-off, not an encoder resolution.
+    floor = ROUND_OFF_ULPS * np.spacing(max(float(np.abs(x).max()), 1.0))
+    if tol < floor:
+        raise InputError(f"the spline fit cannot get within the tolerance {tol:.3g}: it is "
+                         f"below the round-off of values up to {float(np.abs(x).max()):.3g} "
+                         f"({floor:.3g}); use a larger tolerance", field=name)
 
     n_samples = t.size
     if n_samples > 3 * INITIAL_SAMPLES_PER_SEGMENT:
