@@ -113,36 +113,75 @@ def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
     CSV values are written with full (round-trip) precision. ``inputs`` are the files the
     result was computed from: writing over one of them is refused.
     """
+    path = check_output_path(path, inputs=inputs, suffixes=SUPPORTED_SUFFIXES)
+    suffix = path.suffix.lower()
+    names = list(columns)
+    arrays = [np.ascontiguousarray(columns[name], dtype=float) for name in names]
+
+    def write(handle) -> None:
+        if suffix == ".npz":
+            np.savez(handle, **dict(zip(names, arrays)))
+            return
+        import pyarrow as pa
+        table = pa.table(dict(zip(names, arrays)))
+        if suffix == ".csv":
+            import pyarrow.csv as pacsv
+            handle.write((",".join(names) + "\n").encode())
+            pacsv.write_csv(table, handle,
+                            write_options=pacsv.WriteOptions(include_header=False))
+        else:
+            import pyarrow.parquet as pq
+            pq.write_table(table, handle)
+
+    return _write_atomically(path, write)
+
+
+def write_text(path: str | Path, chunks: str | Iterable[str], *,
+               inputs: Iterable[str | Path] = (), suffixes: Sequence[str] | None = None
+               ) -> Path:
+    """Write text (a string or an iterable of strings, UTF-8) atomically, like
+    :func:`write_columns`: to a temporary file beside ``path``, then renamed; an input is never
+    overwritten; ``suffixes``, when given, are the allowed file extensions."""
+    path = check_output_path(path, inputs=inputs, suffixes=suffixes)
+    if isinstance(chunks, str):
+        chunks = (chunks,)
+
+    def write(handle) -> None:
+        for chunk in chunks:
+            handle.write(chunk.encode())
+
+    return _write_atomically(path, write)
+
+
+def check_output_path(path: str | Path, *, inputs: Iterable[str | Path] = (),
+                      suffixes: Sequence[str] | None = None) -> Path:
+    """Check, before computing, that ``path`` can be an output: a known extension (when
+    ``suffixes`` are given), an existing directory to put it in, not a directory itself, and
+    not one of ``inputs``. Returns ``path`` as a :class:`Path`; raises :class:`InputError`."""
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in SUPPORTED_SUFFIXES:
+    if suffixes is not None and suffix not in suffixes:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "
-                         f"{', '.join(SUPPORTED_SUFFIXES)}", source=str(path))
+                         f"{', '.join(suffixes)}", source=str(path))
     for source in inputs:
         if _same_file(path, Path(source)):
-            raise InputError("refusing to overwrite an input file; choose another -o",
+            raise InputError("refusing to overwrite an input file; choose another output",
                              source=str(path))
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise InputError("output directory does not exist", source=str(path))
-    names = list(columns)
-    arrays = [np.ascontiguousarray(columns[name], dtype=float) for name in names]
+    if path.is_dir():
+        raise InputError("output is a directory; name a file", source=str(path))
+    return path
+
+
+def _write_atomically(path: Path, write) -> Path:
+    """Call ``write(binary_handle)`` on a temporary file beside ``path``, then rename it."""
+    directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
         with os.fdopen(fd, "wb") as handle:
-            if suffix == ".npz":
-                np.savez(handle, **dict(zip(names, arrays)))
-            else:
-                import pyarrow as pa
-                table = pa.table(dict(zip(names, arrays)))
-                if suffix == ".csv":
-                    import pyarrow.csv as pacsv
-                    handle.write((",".join(names) + "\n").encode())
-                    pacsv.write_csv(table, handle,
-                                    write_options=pacsv.WriteOptions(include_header=False))
-                else:
-                    import pyarrow.parquet as pq
-                    pq.write_table(table, handle)
+            write(handle)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
