@@ -70,7 +70,9 @@ class Drive:
         Nonlinear friction, used only by the time-domain simulator.
     v_max, a_max, j_max : float or None
         Axis velocity, acceleration and jerk limits (mm or rad, per s, s^2, s^3) for
-        trajectory generation.
+        trajectory generation and for the commands written out.
+    position_min, position_max : float or None
+        Axis travel (mm or rad); commands written out must stay within it.
     """
 
     axis: str
@@ -83,6 +85,8 @@ class Drive:
     v_max: float | None = None
     a_max: float | None = None
     j_max: float | None = None
+    position_min: float | None = None
+    position_max: float | None = None
 
     @property
     def gain(self) -> float:

@@ -126,7 +126,13 @@ def _parse_drive(axis: str, table: ConfigTable) -> Drive:
         v_max=table.get_float("v_max", required=False, above=0.0),
         a_max=table.get_float("a_max", required=False, above=0.0),
         j_max=table.get_float("j_max", required=False, above=0.0),
+        position_min=table.get_float("position_min", required=False),
+        position_max=table.get_float("position_max", required=False),
     )
+    if (drive.position_min is not None and drive.position_max is not None
+            and not drive.position_min < drive.position_max):
+        raise table.error("position_max", f"must be > position_min ({drive.position_min:g}), "
+                                          f"got {drive.position_max:g}")
     table.finish()
     return drive
 
