@@ -53,3 +53,7 @@ class ToolPathError(InputError):
 
 class UnsupportedControllerError(PrecontourError, ValueError):
     """The requested operation does not support this controller (e.g. a nonlinear one)."""
+
+
+class MachineLimitError(PrecontourError, ValueError):
+    """Commands would ask more of the machine than its axis limits allow."""
