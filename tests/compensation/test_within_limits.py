@@ -63,3 +63,19 @@ def test_impossible_limits_are_errors(machine, circle):
         compensate_within_limits(circle, machine.kinematics, models, travel)
     with pytest.raises(MachineLimitError, match=r"after 1 compensation round\(s\)"):
         compensate_within_limits(circle, machine.kinematics, models, limits, max_rounds=1)
+
+
+def test_splicing_matches_compensating_everything_again(machine, circle):
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    spliced = compensate_within_limits(circle, machine.kinematics, models, limits, splice=True)
+    full = compensate_within_limits(circle, machine.kinematics, models, limits, splice=False)
+    assert spliced.rounds == full.rounds >= 2
+    assert spliced.reference.n_samples == full.reference.n_samples
+    dq = np.abs(spliced.result.trajectory.q - full.result.trajectory.q).max(axis=0)
+    # Measured 3e-5 mm and 6e-8 rad: the two spline fits' difference, far below the errors.
+    assert np.all(dq <= [1e-4] * 3 + [1e-6] * 2), dq
+    a, b = spliced.result.after.summary(), full.result.after.summary()
+    assert a["tip_max_um"] == pytest.approx(b["tip_max_um"], rel=0.05)
+    assert a["ori_max_mrad"] == pytest.approx(b["ori_max_mrad"], rel=0.05)
+    assert spliced.result.before.tip.max() == pytest.approx(full.result.before.tip.max())
