@@ -469,7 +469,7 @@ def run_run(args: argparse.Namespace) -> int:
         files = []
         if args.report is not None:
             from .reports.run_report import write_run_report
-            progress(5, 5, f"report {args.report}")
+            progress(4, 4, f"report {args.report}")
             files += write_run_report(result, args.report)
         files = write_run_outputs(result, outputs, inputs) + files
     finally:

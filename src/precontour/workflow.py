@@ -11,7 +11,10 @@ location is checked before any computing, and nothing is written when a step fai
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
@@ -39,6 +42,10 @@ GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
 #: Relative difference between a command file's sampling period and the machine's servo
 #: period tolerated for a halstreamer file (one line per servo period).
 SERVO_PERIOD_RTOL = 1e-6
+
+#: Samples from which the two virtual-machine runs go to two processes by default: starting
+#: a process (importing precontour) takes about a second, a run of 10^5 samples tens of them.
+PARALLEL_MIN_SAMPLES = 100_000
 
 Progress = Callable[[int, int, str], None]
 
@@ -174,13 +181,14 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
 
 def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
                 controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
-                tolerance: np.ndarray | None = None,
-                progress: Progress | None = None) -> RunResult:
+                tolerance: np.ndarray | None = None, progress: Progress | None = None,
+                workers: int | None = None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and
+    writes. ``workers``: processes for the two virtual-machine runs (default: 2 when the
+    computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES` samples). Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and
     when the machine's limits cannot be kept."""
     timings: dict[str, float] = {}
-    total = 5
+    total = 4
 
     def step(done: int, message: str) -> None:
         if progress is not None:
@@ -208,18 +216,14 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                                        progress=round_progress)
     timings["compensate"] = time.perf_counter() - start
 
-    reference = ReferencePath.from_trajectory(limited.reference)
-    simulated = []
-    for done, (label, q) in enumerate((("uncompensated", limited.reference.q),
-                                       ("compensated", limited.result.trajectory.q)), start=2):
-        step(done, f"virtual machine, {label} ({limited.reference.n_samples} samples)")
-        start = time.perf_counter()
-        sim = simulate(limited.reference.t, q, machine_obj, controller, mode="discrete",
-                       friction=True, ff_friction=True)
-        simulated.append(contour_errors(reference, sim.q_act, machine_obj.kinematics))
-        timings[f"simulate {label}"] = time.perf_counter() - start
+    step(2, f"virtual machine, uncompensated and compensated "
+            f"({limited.reference.n_samples} samples each)")
+    start = time.perf_counter()
+    simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
+                                         machine, controller, workers=workers)
+    timings["virtual machine (both)"] = time.perf_counter() - start
 
-    step(4, "write G-code")
+    step(3, "write G-code")
     start = time.perf_counter()
     commands = limited.result.trajectory
     info = ProgramInfo(machine=machine_obj.name, controller=controller,
@@ -233,6 +237,35 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings)
+
+
+def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
+                             machine: str | Path, controller: str, *,
+                             workers: int | None = None) -> tuple[ContourErrors, ContourErrors]:
+    """Contour errors of the uncompensated (``reference.q``) and the compensated commands on
+    the realistic virtual machine (discrete controller, friction, feed-forward friction
+    compensation), against ``reference``. The two runs are independent time loops: with
+    ``workers`` >= 2 they run in two processes at once."""
+    jobs = [(str(machine), controller, reference, q) for q in (reference.q, q_compensated)]
+    if workers is None:
+        workers = (min(2, os.cpu_count() or 1) if reference.n_samples >= PARALLEL_MIN_SAMPLES
+                   else 1)
+    if workers < 2:
+        return tuple(_virtual_machine_errors(*job) for job in jobs)
+    # forkserver: a clean process, whatever threads (pyarrow, BLAS) this one has started.
+    context = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
+        futures = [pool.submit(_virtual_machine_errors, *job) for job in jobs]
+        return tuple(f.result() for f in futures)
+
+
+def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory,
+                            q: np.ndarray) -> ContourErrors:
+    machine_obj = load_machine(machine)
+    sim = simulate(reference.t, q, machine_obj, controller, mode="discrete", friction=True,
+                   ff_friction=True)
+    return contour_errors(ReferencePath.from_trajectory(reference), sim.q_act,
+                          machine_obj.kinematics)
 
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,
