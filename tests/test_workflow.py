@@ -217,3 +217,32 @@ def test_run_bad_inputs(tmp_path, capsys):
     ]
     for argv, pattern in cases:
         _fail(argv, capsys, pattern, tmp_path, inputs=inputs)
+
+
+def test_run_reads_gcode_in_machine_axes(tmp_path, capsys):
+    """A G-code program (G0, then G1 with feeds in mm/min) in, a compensated one out; the
+    progress goes to stderr, the table to stdout."""
+    from precontour.trajectory.generate import generate_trajectory
+    machine = load_machine("zhang2013")
+    planned = generate_trajectory(builtin_path("paper"), machine)
+    q = planned.q[::25]
+    lines = ["%", "(test part)", "G21 G90 G94", "G0 " + _axis_words(q[0])]
+    lines += [f"G1 {_axis_words(row)} F3000" for row in q[1:]]
+    lines += ["M2", "%"]
+    program = tmp_path / "part.ngc"
+    program.write_text("\n".join(lines) + "\n")
+    before = program.read_bytes()
+    assert main(["run", str(program), "-o", str(tmp_path / "part-comp.ngc")]) == 0
+    captured = capsys.readouterr()
+    assert "compensate" in captured.err and "virtual machine" in captured.err
+    assert "simulated after" in captured.out and "blocks written" in captured.out
+    assert program.read_bytes() == before
+    times, points = _read_gcode((tmp_path / "part-comp.ngc").read_text())
+    assert len(times) > 10 and np.all(np.diff(times) >= 0.001 * (1 - 1e-9))
+    # The compensated program stays close to the programmed path: within the servo lag.
+    assert np.abs(points[0] - q[0]).max() < 0.5
+
+
+def _axis_words(row):
+    return (f"X{row[0]:.4f} Y{row[1]:.4f} Z{row[2]:.4f} A{np.degrees(row[3]):.5f} "
+            f"C{np.degrees(row[4]):.5f}")

@@ -9,6 +9,7 @@ stages before it::
     prediction/    minimum-jerk spline fit, closed-form tracking error, contour errors
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
+    workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
     tables.py      checked CSV / .npz / .parquet in and out
     cli.py         the ``precontour`` command
