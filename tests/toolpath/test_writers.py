@@ -199,3 +199,16 @@ def test_halstreamer_file():
     np.testing.assert_array_equal(rows[:, :3], q[:, :3])
     np.testing.assert_allclose(np.radians(rows[:, 3:]), q[:, 3:], rtol=1e-15, atol=1e-15)
     assert streamer_depth(TS) == 2000 and math.isclose(streamer_depth(0.0005), 4000)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.integers(2, 400), st.floats(1e-4, 1e-2), st.floats(1e-6, 1e-3))
+def test_any_commands_round_trip_within_tolerance(seed, n, tol_linear, tol_rotary):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * TS
+    q = np.cumsum(rng.normal(scale=[0.01, 0.01, 0.01, 1e-4, 1e-4], size=(n, 5)), axis=0)
+    tolerance = axis_tolerances(tol_linear, tol_rotary)
+    program = gcode_program(t, q, tolerance=tolerance)
+    times, points = _read_back(program.text)
+    assert times[-1] == pytest.approx(t[-1], abs=1e-9)
+    assert np.all(np.abs(_interpolate(times, points, t) - q) <= tolerance)
