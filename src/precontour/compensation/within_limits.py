@@ -4,8 +4,10 @@ Compensated commands lead the reference, and their corrections add velocity, acc
 and above all jerk (up to +91 % peak jerk on the built-in paths). Where the compensated
 commands break an axis limit, the reference is slowed down locally
 (:func:`precontour.trajectory.retime.retime`, by the stretch the limit check asks for, with
-a margin) and compensated again, until every axis keeps every limit. The
-slowed windows are reported in the time of the original reference.
+a margin) and compensated again, until every axis keeps every limit; after the first
+round only the stretches around the slowed windows are compensated again and spliced into
+the commands (compensation is local in time). The slowed windows are reported in the time of
+the original reference.
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ from .precompensate import CompensationResult, compensate, predicted_actual
 MAX_ROUNDS = 8
 #: Each round slows down to this fraction of what the limit check asks for. Compensating the
 #: slowed reference again changes the corrections a little, so aiming just at the limit
-#: (the feed planner's 0.98) needed 4 compensations on a 2-minute test path, 0.9 needs 2-3;
-#: every round is a full compensation, the costliest step of ``run``.
+#: (the feed planner's 0.98) needed 4 compensation rounds on a 2-minute test path, 0.9
+#: needed 3; each round is a compensation, the costliest step of ``run``.
 RETIME_MARGIN = 0.9
 
 
