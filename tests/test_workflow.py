@@ -246,3 +246,18 @@ def test_run_reads_gcode_in_machine_axes(tmp_path, capsys):
 def _axis_words(row):
     return (f"X{row[0]:.4f} Y{row[1]:.4f} Z{row[2]:.4f} A{np.degrees(row[3]):.5f} "
             f"C{np.degrees(row[4]):.5f}")
+
+
+def test_virtual_machine_check_in_two_processes_is_identical():
+    from precontour.trajectory.generate import generate_trajectory
+    from precontour.workflow import check_on_virtual_machine
+    machine = load_machine("zhang2013")
+    planned = generate_trajectory(builtin_path("paper"), machine)
+    shifted = planned.q + 0.001
+    serial = check_on_virtual_machine(planned, shifted, "zhang2013", "pid-low", workers=1)
+    parallel = check_on_virtual_machine(planned, shifted, "zhang2013", "pid-low", workers=2)
+    for a, b in zip(serial, parallel):
+        np.testing.assert_array_equal(a.tip, b.tip)
+        np.testing.assert_array_equal(a.orientation, b.orientation)
+    # Two different runs, each computed once in each process.
+    assert serial[0].tip.max() != serial[1].tip.max()

@@ -465,7 +465,7 @@ def run_run(args: argparse.Namespace) -> int:
         result = run_program(args.program, outputs, machine=args.machine,
                              controller=args.controller, tcp=args.tcp,
                              iterations=args.iterations, tolerance=args.tol,
-                             progress=progress)
+                             progress=progress, workers=None)
         files = []
         if args.report is not None:
             from .reports.run_report import write_run_report

@@ -182,11 +182,14 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
 def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
                 controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
-                workers: int | None = None) -> RunResult:
+                workers: int | None = 1) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``workers``: processes for the two virtual-machine runs (default: 2 when the
-    computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES` samples). Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and
-    when the machine's limits cannot be kept."""
+    writes. ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
+    when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
+    samples; more than 1 needs the calling script's own code under
+    ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
+    Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
+    machine's limits cannot be kept."""
     timings: dict[str, float] = {}
     total = 4
 
@@ -241,12 +244,13 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
 
 def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
                              machine: str | Path, controller: str, *,
-                             workers: int | None = None) -> tuple[ContourErrors, ContourErrors]:
+                             workers: int | None = 1) -> tuple[ContourErrors, ContourErrors]:
     """Contour errors of the uncompensated (``reference.q``) and the compensated commands on
     the realistic virtual machine (discrete controller, friction, feed-forward friction
     compensation), against ``reference``. The two runs are independent time loops: with
-    ``workers`` >= 2 they run in two processes at once."""
-    jobs = [(str(machine), controller, reference, q) for q in (reference.q, q_compensated)]
+    ``workers`` >= 2 they run in two processes at once (None: see :func:`run_program`)."""
+    spec = str(Path(machine).resolve()) if Path(str(machine)).exists() else str(machine)
+    jobs = [(spec, controller, reference, q) for q in (reference.q, q_compensated)]
     if workers is None:
         workers = (min(2, os.cpu_count() or 1) if reference.n_samples >= PARALLEL_MIN_SAMPLES
                    else 1)
