@@ -55,6 +55,7 @@ def test_a_jerk_spike_names_axis_time_and_stretch():
     assert excess.value == pytest.approx(50 / TS, rel=1e-6)
     assert excess.time == pytest.approx(0.4995, abs=2e-3)
     assert check.stretch.max() == pytest.approx(50 ** (1 / 3), rel=1e-6)
+    assert check.ratio.max() == pytest.approx(50, rel=1e-6)
     assert np.flatnonzero(check.stretch > 1).min() >= 495
     assert "Y jerk" in check.format() and "5000.0 %" in check.format()
 

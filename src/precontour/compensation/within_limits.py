@@ -109,7 +109,11 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                                     "slowing down cannot cure: " + check.format())
         if round_ == max_rounds:
             break
-        stretch = np.where(check.stretch > 1.0 + CHECK_RTOL, check.stretch / RETIME_MARGIN, 1.0)
+        # The first round assumes a limit's quantity falls like rho^order when slowed by rho.
+        # What still exceeds a limit after that falls more slowly (kinks of the corrections):
+        # later rounds slow it by the whole ratio.
+        need = check.stretch if round_ == 1 else np.maximum(check.stretch, check.ratio)
+        stretch = np.where(need > 1.0 + CHECK_RTOL, need / RETIME_MARGIN, 1.0)
         retimed = retime(current, stretch, line=current_line)
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
         previous, current, current_line = current, retimed.trajectory, retimed.line

@@ -78,6 +78,10 @@ class LimitCheck:
     stretch : ndarray, shape (N,)
         Largest time-stretch factor any velocity, acceleration or jerk limit asks for at each
         sample ((|x| / L)^(1/order) of the differences that touch the sample); <= 1 is within.
+    ratio : ndarray, shape (N,)
+        Largest |x| / L at each sample, any order: the stretch needed where a quantity falls
+        only like 1/rho when slowed by rho (a kink of the commands: a jump of velocity gives
+        acceleration and jerk differences that fall like 1/rho, not 1/rho^2 or 1/rho^3).
     excesses : tuple of LimitExcess
         The worst excess of each axis and quantity beyond its limit (relative tolerance
         ``CHECK_RTOL``), position first.
@@ -86,6 +90,7 @@ class LimitCheck:
     """
 
     stretch: np.ndarray
+    ratio: np.ndarray
     excesses: tuple[LimitExcess, ...]
     peaks: dict
 
@@ -109,6 +114,7 @@ def check_limits(q: np.ndarray, ts: float, limits: AxisLimits, *, t0: float = 0.
     q = np.asarray(q, dtype=float)
     n = q.shape[0]
     stretch = np.zeros(n)
+    worst = np.zeros(n)
     excesses: list[LimitExcess] = []
     tol = 1.0 + CHECK_RTOL
 
@@ -140,8 +146,11 @@ def check_limits(q: np.ndarray, ts: float, limits: AxisLimits, *, t0: float = 0.
                 sample = k + order // 2
                 excesses.append(LimitExcess(axis, name, float(value[k, i]), float(limit[i]),
                                             t0 + (k + 0.5 * order) * ts, sample))
-        need = np.max(ratio, axis=1) ** (1.0 / order)
+        largest = np.max(ratio, axis=1)
+        need = largest ** (1.0 / order)
         # A difference touches samples k .. k + order: each of them gets its need.
         for shift in range(order + 1):
-            np.maximum(stretch[shift:shift + need.size], need, out=stretch[shift:shift + need.size])
-    return LimitCheck(stretch=stretch, excesses=tuple(excesses), peaks=peaks)
+            part = slice(shift, shift + need.size)
+            np.maximum(stretch[part], need, out=stretch[part])
+            np.maximum(worst[part], largest, out=worst[part])
+    return LimitCheck(stretch=stretch, ratio=worst, excesses=tuple(excesses), peaks=peaks)
