@@ -10,7 +10,7 @@ import precontour
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
 STAGES = ("errors", "files", "machine", "toolpath", "trajectory", "tables", "prediction",
-          "compensation", "simulation", "identification", "reports", "cli")
+          "compensation", "simulation", "identification", "workflow", "reports", "cli")
 
 
 def _module_name(path: Path) -> str:

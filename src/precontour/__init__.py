@@ -10,6 +10,7 @@ stages before it::
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
     identification/ drive models from servo logs, the excitation motion
+    workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
     tables.py      checked CSV / .npz / .parquet in and out
     cli.py         the ``precontour`` command

@@ -42,6 +42,9 @@ from .toolpath import read_program, read_toolpath, toolpath_format
 from .trajectory.generate import (DEFAULT_DWELL, default_max_samples, generate_trajectory,
                                   summarize)
 from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
+from .toolpath.writers import (DEFAULT_TOL_LINEAR as GCODE_TOL_LINEAR,
+                               DEFAULT_TOL_ROTARY as GCODE_TOL_ROTARY, axis_tolerances)
+from .workflow import EXPORT_FORMATS
 
 EXIT_USAGE = 2
 
@@ -317,7 +320,76 @@ def build_parser() -> argparse.ArgumentParser:
     excite.add_argument("--axes", default="XYZAC", metavar="AXES",
                         help="axes to excite (default XYZAC)")
     excite.set_defaults(run=run_excite)
+
+    export = commands.add_parser(
+        "export", help="write axis commands as a program a CNC runs (G-code, halstreamer)",
+        description="Write a command file as machine-axis G-code (G90 G93 inverse-time G1 "
+                    "blocks, decimated within --tol), as a LinuxCNC halstreamer file (one "
+                    "line X Y Z A C per servo period) or as a table. Programs must keep the "
+                    "machine's axis limits; commands that do not are refused.")
+    export.add_argument("commands", type=Path,
+                        help="command file (.csv/.npz/.parquet) with t,X,Y,Z,A,C (s, mm, rad), "
+                             "uniformly sampled")
+    export.add_argument("--format", choices=EXPORT_FORMATS, default=None,
+                        help="gcode, halstreamer, csv, npz or parquet (default: from the "
+                             "extension of -o; needed for halstreamer)")
+    export.add_argument("--machine", default="zhang2013",
+                        help="built-in machine name or machine TOML file, for the limits and "
+                             "the header (default: zhang2013)")
+    export.add_argument("--controller", default="",
+                        help="controller name to record in the header (optional)")
+    _add_tol_option(export)
+    export.add_argument("-o", "--output", type=Path, required=True, help="output file")
+    export.set_defaults(run=run_export)
+
+    run = commands.add_parser(
+        "run", help="program in, compensated program out",
+        description="Read an NC program (G-code in machine axes) or CL data, plan the "
+                    "trajectory, predict and contour pre-compensate the axis commands, keep "
+                    "them within the machine's axis limits (slowing down locally and "
+                    "compensating again where needed), check uncompensated and compensated "
+                    "commands on the realistic virtual machine, and write the compensated "
+                    "program. Progress goes to stderr; a table of the results to stdout.")
+    run.add_argument("program", type=Path,
+                     help="NC program (.nc/.ngc/.gcode/...) or CL data (.csv/.apt)")
+    _add_machine_options(run)
+    run.add_argument("--tcp", action="store_true",
+                     help="the whole program is in tool centre point mode (X Y Z = tool tip)")
+    run.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
+                     help="largest number of compensation passes (default 1)")
+    _add_tol_option(run)
+    run.add_argument("-o", "--output", type=Path, required=True,
+                     help="compensated G-code program (.ngc, .nc, ...)")
+    run.add_argument("--stream", type=Path, default=None, metavar="OUT.txt",
+                     help="also write a halstreamer file (one line per servo period)")
+    run.add_argument("--commands", type=Path, default=None, metavar="OUT.csv",
+                     help="also write the compensated commands with the reference: "
+                          "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
+    run.add_argument("--report", type=Path, default=None, metavar="DIR",
+                     help="also write figures, the table and an index.html to DIR")
+    run.set_defaults(run=run_run)
     return parser
+
+
+def _add_tol_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--tol", type=_tolerance, default=None, metavar="MM[,RAD]",
+                        help="G-code decimation tolerance per axis: mm on X Y Z and rad on A C "
+                             f"(default {GCODE_TOL_LINEAR:g},{GCODE_TOL_ROTARY:g}); the "
+                             "blocks, interpolated linearly in time, stay this close to every "
+                             "command sample")
+
+
+def _tolerance(text: str) -> np.ndarray:
+    parts = text.split(",")
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"give MM or MM,RAD, got {text!r}")
+    values = [_positive_float(p.strip()) for p in parts]
+    linear = values[0]
+    rotary = values[1] if len(values) == 2 else GCODE_TOL_ROTARY
+    try:
+        return axis_tolerances(linear, rotary)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _add_machine_options(parser: argparse.ArgumentParser) -> None:
@@ -651,11 +723,56 @@ def run_excite(args: argparse.Namespace) -> int:
                          field="axes")
     travel = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
-    write_excitation(args.output, traj, machine)
+    write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
           f"axes {''.join(axes)} one at a time then together, within {args.safety:g} of the "
           "drive limits")
     print(f"wrote {args.output} in {time.perf_counter() - start:.2f} s")
+    return 0
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from .workflow import export_commands
+
+    start = time.perf_counter()
+    result = export_commands(args.commands, args.output, format=args.format,
+                             machine=args.machine, controller=args.controller,
+                             tolerance=args.tol)
+    blocks = f", {result.n_blocks} blocks" if result.n_blocks is not None else ""
+    print(f"exported {result.n_samples} command samples as {result.format}{blocks}")
+    print(f"wrote {result.path} in {time.perf_counter() - start:.3f} s")
+    return 0
+
+
+def run_run(args: argparse.Namespace) -> int:
+    from .reports.progress import ProgressLine
+    from .workflow import RunOutputs, run_program, write_run_outputs
+
+    start = time.perf_counter()
+    outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
+                         report=args.report)
+    inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
+    progress = ProgressLine(sys.stderr)
+    try:
+        result = run_program(args.program, outputs, machine=args.machine,
+                             controller=args.controller, tcp=args.tcp,
+                             iterations=args.iterations, tolerance=args.tol,
+                             progress=progress, workers=None)
+        files = []
+        if args.report is not None:
+            from .reports.run_report import write_run_report
+            progress(4, 4, f"report {args.report}")
+            files += write_run_report(result, args.report)
+        files = write_run_outputs(result, outputs, inputs) + files
+    finally:
+        progress.close()
+    print(f"{args.program} on {result.machine.name}, controller {args.controller}: "
+          "contour errors before and after compensation (before = the uncompensated "
+          "commands, same timing)")
+    print(result.table())
+    print(f"wrote {', '.join(str(f) for f in files[:4])}"
+          + (f" and {len(files) - 4} more" if len(files) > 4 else "")
+          + f" in {time.perf_counter() - start:.1f} s")
     return 0
 
 

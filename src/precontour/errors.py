@@ -107,3 +107,7 @@ class ProgramError(ToolPathError):
 
 class UnsupportedControllerError(PrecontourError, ValueError):
     """The requested operation does not support this controller (e.g. a nonlinear one)."""
+
+
+class MachineLimitError(PrecontourError, ValueError):
+    """Commands would ask more of the machine than its axis limits allow."""

@@ -204,18 +204,18 @@ def trajectory_columns(traj: Trajectory) -> dict[str, np.ndarray]:
 
 def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
                   inputs: Iterable[str | Path] = ()) -> Path:
-    """Write float columns to CSV / ``.npz`` / ``.parquet`` (by suffix), atomically.
+    """Write float columns to CSV / ``.npz`` / ``.parquet`` (by suffix), atomically
+    (:func:`precontour.files.atomic_write`).
 
     CSV values are written with full (round-trip) precision. ``inputs`` are the files the
     result was computed from: writing over one of them is refused.
     """
-    path = Path(path)
-    check_output_table(path, inputs)
+    path = check_output_table(path, inputs)
+    suffix = path.suffix.lower()
     names = list(columns)
     arrays = [np.ascontiguousarray(columns[name], dtype=float) for name in names]
-    suffix = path.suffix.lower()
 
-    def write(handle):
+    def write(handle) -> None:
         if suffix == ".npz":
             np.savez(handle, **dict(zip(names, arrays)))
             return
@@ -224,7 +224,8 @@ def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
         if suffix == ".csv":
             import pyarrow.csv as pacsv
             handle.write((",".join(names) + "\n").encode())
-            pacsv.write_csv(table, handle, write_options=pacsv.WriteOptions(include_header=False))
+            pacsv.write_csv(table, handle,
+                            write_options=pacsv.WriteOptions(include_header=False))
         else:
             import pyarrow.parquet as pq
             pq.write_table(table, handle)
@@ -232,24 +233,41 @@ def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
     return atomic_write(path, write, inputs=inputs)
 
 
-def check_output_table(path: str | Path, inputs: Iterable[str | Path] = ()) -> Path:
-    """Check, before computing, that ``path`` is a table file :func:`write_columns` can write
-    (a supported suffix) at a place :func:`precontour.files.check_outputs` allows."""
+def write_text(path: str | Path, chunks: str | Iterable[str], *,
+               inputs: Iterable[str | Path] = (), suffixes: Sequence[str] | None = None
+               ) -> Path:
+    """Write text (a string or an iterable of strings, UTF-8) atomically, like
+    :func:`write_columns`; ``suffixes``, when given, are the allowed file extensions."""
+    path = check_output_path(path, inputs=inputs, suffixes=suffixes)
+    if isinstance(chunks, str):
+        chunks = (chunks,)
+
+    def write(handle) -> None:
+        for chunk in chunks:
+            handle.write(chunk.encode("utf-8"))
+
+    return atomic_write(path, write, inputs=inputs)
+
+
+def check_output_path(path: str | Path, *, inputs: Iterable[str | Path] = (),
+                      suffixes: Sequence[str] | None = None) -> Path:
+    """Check, before computing, that ``path`` can be an output: a known extension (when
+    ``suffixes`` are given), not a folder, at a place :func:`precontour.files.check_outputs`
+    allows (an existing writable folder, never one of ``inputs``). Returns it as a Path."""
     path = Path(path)
     suffix = path.suffix.lower()
     if path.is_dir():
         raise OutputError("is an existing folder; give a file name", source=str(path))
-    if suffix not in SUPPORTED_SUFFIXES:
+    if suffixes is not None and suffix not in suffixes:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "
-                         f"{', '.join(SUPPORTED_SUFFIXES)}", source=str(path))
+                         f"{', '.join(suffixes)}", source=str(path))
     check_outputs([path], inputs)
     return path
 
 
-def write_text(path: str | Path, text: str, *, inputs: Iterable[str | Path] = ()) -> Path:
-    """Write a text file (e.g. a machine file) atomically (:func:`precontour.files.atomic_write`);
-    never over an input."""
-    return atomic_write(path, text.encode("utf-8"), inputs=inputs)
+def check_output_table(path: str | Path, inputs: Iterable[str | Path] = ()) -> Path:
+    """:func:`check_output_path` for a table file :func:`write_columns` can write."""
+    return check_output_path(path, inputs=inputs, suffixes=SUPPORTED_SUFFIXES)
 
 
 def _read_csv(path: Path, wanted: list[str]) -> dict[str, np.ndarray]:

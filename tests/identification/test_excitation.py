@@ -60,21 +60,29 @@ def test_csv_round_trip(tmp_path, machine):
     np.testing.assert_array_equal(back.q, traj.q)
 
 
-def test_programs_need_the_writers(tmp_path, machine, monkeypatch):
-    monkeypatch.setitem(sys.modules, "precontour.toolpath.writers", None)
+def test_halstreamer_program_is_the_excitation_in_degrees(tmp_path, machine):
     traj = excitation_trajectory(machine, axes=("C",))
-    for suffix in (".ngc", ".txt"):
-        with pytest.raises(InputError, match=r"needs precontour\.toolpath\.writers"):
-            write_excitation(tmp_path / f"exc{suffix}", traj, machine)
-
-
-@pytest.mark.parametrize("suffix", [".ngc", ".txt"])
-def test_programs(tmp_path, machine, suffix):
-    pytest.importorskip("precontour.toolpath.writers")
-    traj = excitation_trajectory(machine, axes=("C",))
-    path = tmp_path / f"exc{suffix}"
+    path = tmp_path / "exc.txt"
     write_excitation(path, traj, machine)
-    assert path.stat().st_size > 0
+    rows = [line.split() for line in path.read_text().splitlines()
+            if line.strip() and not line.startswith("#")]
+    values = np.array(rows, dtype=float)
+    assert values.shape == traj.q.shape
+    np.testing.assert_allclose(values[:, :3], traj.q[:, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.radians(values[:, 3:]), traj.q[:, 3:], rtol=0, atol=1e-9)
+
+
+def test_gcode_program_reaches_the_excitation_positions(tmp_path, machine):
+    from precontour.toolpath import read_program
+
+    traj = excitation_trajectory(machine, axes=("C",))
+    path = tmp_path / "exc.ngc"
+    write_excitation(path, traj, machine)
+    program = read_program(path, machine)
+    # every block ends on a command sample (within the G-code's decimals), the last at the end
+    np.testing.assert_allclose(program.q[-1], traj.q[-1], rtol=0, atol=1e-5)
+    c = traj.q[:, 4]
+    assert c.min() - 1e-5 <= program.q[:, 4].min() and program.q[:, 4].max() <= c.max() + 1e-5
 
 
 def test_bad_options(machine):

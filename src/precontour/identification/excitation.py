@@ -12,10 +12,14 @@ start (and within the A axis's travel, if the machine has one).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..errors import InputError
 from ..machine.drives import AXES, ROTARY_AXES
+from ..tables import trajectory_columns, write_columns, write_text
+from ..toolpath.writers import ProgramInfo, gcode_program, halstreamer_lines
 from ..trajectory.sampled import Trajectory
 
 #: Default half travel of the excitation, mm (X, Y, Z) and rad (A, C).
@@ -197,35 +201,22 @@ TABLE_SUFFIXES: tuple[str, ...] = (".csv", ".npz", ".parquet")
 PROGRAM_SUFFIXES: dict[str, str] = {".ngc": "gcode", ".txt": "halstreamer"}
 
 
-def write_excitation(path, traj: Trajectory, machine) -> None:
-    """Write the excitation as ``t,X,Y,Z,A,C`` columns, or as a G-code / halstreamer program."""
-    from pathlib import Path
-
-    from ..tables import trajectory_columns, write_columns
-
+def write_excitation(path, traj: Trajectory, machine, *, inputs=()) -> None:
+    """Write the excitation as ``t,X,Y,Z,A,C`` columns, or as a G-code (``.ngc``) or LinuxCNC
+    halstreamer (``.txt``) program (:mod:`precontour.toolpath.writers`)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in TABLE_SUFFIXES:
-        write_columns(path, trajectory_columns(traj))
-    elif suffix in PROGRAM_SUFFIXES:
-        write_program(path, traj, machine, PROGRAM_SUFFIXES[suffix])
-    else:
+        write_columns(path, trajectory_columns(traj), inputs=inputs)
+        return
+    if suffix not in PROGRAM_SUFFIXES:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "
                          f"{', '.join(TABLE_SUFFIXES + tuple(PROGRAM_SUFFIXES))}",
                          source=str(path))
-
-
-def write_program(path, traj: Trajectory, machine, fmt: str) -> None:
-    """Write sampled axis commands as an NC program through :mod:`precontour.toolpath.writers`
-    (``write_gcode`` / ``write_halstreamer``), which is optional: without it, one-line error."""
-    try:
-        from ..toolpath import writers
-    except ImportError:
-        raise InputError(f"writing {fmt} programs needs precontour.toolpath.writers, which this "
-                         "installation does not have; write .csv, .npz or .parquet instead",
-                         source=str(path)) from None
-    writer = getattr(writers, f"write_{fmt}", None)
-    if writer is None:
-        raise InputError(f"precontour.toolpath.writers has no write_{fmt}; write .csv, .npz or "
-                         ".parquet instead", source=str(path))
-    writer(path, traj, machine)
+    info = ProgramInfo(machine=machine.name, controller="",
+                       method="identification excitation (precontour excite)", source="")
+    if PROGRAM_SUFFIXES[suffix] == "halstreamer":
+        text = halstreamer_lines(traj.q, traj.ts, info=info)
+    else:
+        text = gcode_program(traj.t, traj.q, info=info).text
+    write_text(path, text, inputs=inputs)

@@ -1,0 +1,374 @@
+"""Program in, program out: the ``precontour run`` and ``precontour export`` workflows.
+
+``run``: read an NC program (or CL data), plan its trajectory, predict and contour
+pre-compensate the axis commands, keep them within the machine's limits (slowing down locally
+and compensating again where needed), check uncompensated and compensated commands on the
+realistic virtual machine (discrete controller, friction, feed-forward friction compensation),
+and write the compensated program (G-code), optionally a halstreamer file and the command
+table. ``export``: write an existing command file in one of those formats. Every output
+location is checked before any computing, and nothing is written when a step fails.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .compensation.within_limits import LimitedCompensation, compensate_within_limits
+from .errors import InputError, MachineLimitError, notice
+from .machine.machine_file import Machine, load_machine
+from .prediction.contour import ContourErrors, ReferencePath, contour_errors
+from .simulation.virtual_machine import simulate
+from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
+                     trajectory_columns, write_columns, write_text)
+from .toolpath import EXTENSIONS, read_program, read_toolpath, toolpath_format
+from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
+                               halstreamer_lines)
+from .trajectory.generate import generate_trajectory
+from .trajectory.program import program_trajectory
+from .trajectory.limits import AxisLimits, check_limits
+from .trajectory.sampled import Trajectory
+
+#: Formats of ``precontour export``.
+EXPORT_FORMATS: tuple[str, ...] = ("gcode", "halstreamer", "csv", "npz", "parquet")
+#: Extensions a G-code output may have (those the readers take as G-code).
+GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
+#: Relative difference between a command file's sampling period and the machine's servo
+#: period tolerated for a halstreamer file (one line per servo period).
+SERVO_PERIOD_RTOL = 1e-6
+
+#: Samples from which the two virtual-machine runs go to two processes by default: starting
+#: a process (importing precontour) takes about a second, a run of 10^5 samples tens of them.
+PARALLEL_MIN_SAMPLES = 100_000
+
+Progress = Callable[[int, int, str], None]
+
+
+def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False
+                            ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
+    """The planned trajectory of a program, and its non-motion lines to keep (or None).
+
+    The one place ``run`` reads its input. G-code is read as a CNC executes it
+    (:func:`~precontour.toolpath.read_program`, then
+    :func:`~precontour.trajectory.program_trajectory` at the machine's servo period): the
+    trajectory carries the source line of every sample, and the program's pass-through lines
+    (tool change, spindle, coolant, comments) come back for the output program. ``tcp`` puts
+    the whole program in tool centre point mode. CL data (CSV, APT) gives the tool tip
+    already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory` and
+    has no lines to keep.
+    """
+    if toolpath_format(path) == "gcode":
+        program = read_program(path, machine, tcp=tcp)
+        for text in program.notices:
+            notice(text)
+        return program_trajectory(program, machine, ts=machine.servo_period), program.passthrough
+    if tcp:
+        raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
+                         "already)", source=str(path), field="--tcp")
+    toolpath = read_toolpath(path, machine=machine)
+    return generate_trajectory(toolpath, machine, ts=machine.servo_period), None
+
+
+@dataclass(frozen=True)
+class RunOutputs:
+    """Where ``run`` writes: the G-code program, and optionally a halstreamer file, the
+    command table and a report folder."""
+
+    program: Path
+    stream: Path | None = None
+    commands: Path | None = None
+    report: Path | None = None
+
+    def files(self) -> list[Path]:
+        return [p for p in (self.program, self.stream, self.commands) if p is not None]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Everything ``run`` computed.
+
+    ``planned`` is the trajectory as planned from the program; ``limited.reference`` the same
+    after any local slow-down, and ``limited.result.trajectory`` the compensated commands on
+    it. Contour errors before (uncompensated) and after are on the same timing.
+    """
+
+    source: str
+    machine: Machine
+    controller: str
+    planned: Trajectory
+    passthrough: Sequence[tuple[int, str]] | None
+    limited: LimitedCompensation
+    simulated_before: ContourErrors
+    simulated_after: ContourErrors
+    program: GcodeProgram
+    tolerance: np.ndarray
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def commands(self) -> Trajectory:
+        return self.limited.result.trajectory
+
+    @property
+    def predicted_before(self) -> ContourErrors:
+        return self.limited.result.before
+
+    @property
+    def predicted_after(self) -> ContourErrors:
+        return self.limited.result.after
+
+    def table(self) -> str:
+        """The end-of-run table: contour errors before and after, duration, blocks."""
+        rows = [("predicted", "before", self.predicted_before),
+                ("predicted", "after", self.predicted_after),
+                ("simulated", "before", self.simulated_before),
+                ("simulated", "after", self.simulated_after)]
+        lines = [f"{'contour errors':<22}{'tip max':>10}{'tip mean':>10}{'ori max':>10}"
+                 f"{'ori mean':>10}",
+                 f"{'':<22}{'um':>10}{'um':>10}{'mrad':>10}{'mrad':>10}"]
+        for kind, when, errors in rows:
+            s = errors.summary()
+            lines.append(f"{kind + ' ' + when:<22}{s['tip_max_um']:10.3f}{s['tip_mean_um']:10.3f}"
+                         f"{s['ori_max_mrad']:10.4f}{s['ori_mean_mrad']:10.4f}")
+        for label, before, after in (("tip", self.simulated_before.tip,
+                                      self.simulated_after.tip),
+                                     ("orientation", self.simulated_before.orientation,
+                                      self.simulated_after.orientation)):
+            lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
+                         f"mean {_reduction(before.mean(), after.mean())}")
+        duration = self.commands.duration
+        planned = self.planned.duration
+        slow = self.limited.slowdowns
+        lines.append(f"duration {duration:.3f} s (planned {planned:.3f} s"
+                     + (f"; slowed in {len(slow)} window(s), +{self.limited.added_time:.3f} s"
+                        if slow else "; not slowed") + ")")
+        for s in slow[:10]:
+            lines.append("  slowed " + s.format())
+        if len(slow) > 10:
+            lines.append(f"  ... and {len(slow) - 10} more windows")
+        lines.append(f"blocks written {self.program.n_blocks} (tolerance "
+                     f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
+                     f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")
+        return "\n".join(lines)
+
+
+def _reduction(before: float, after: float) -> str:
+    return f"{100 * (1 - after / before):.1f} %" if before > 0 else "-"
+
+
+def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None:
+    """Refuse, before computing, outputs that cannot be written or would overwrite an input
+    or each other."""
+    check_output_path(outputs.program, inputs=inputs, suffixes=GCODE_SUFFIXES)
+    if outputs.stream is not None:
+        check_output_path(outputs.stream, inputs=inputs)
+    if outputs.commands is not None:
+        check_output_path(outputs.commands, inputs=inputs, suffixes=SUPPORTED_SUFFIXES)
+    paths = outputs.files()
+    resolved = [p.resolve() for p in paths]
+    for i, path in enumerate(resolved):
+        if path in resolved[:i]:
+            raise InputError("the same file is named for two outputs", source=str(paths[i]))
+    if outputs.report is not None:
+        report = outputs.report
+        if report.exists() and not report.is_dir():
+            raise InputError("report folder is a file", source=str(report))
+        parent = report.parent if str(report.parent) else Path(".")
+        if not report.exists() and not parent.is_dir():
+            raise InputError("the report folder's parent does not exist", source=str(report))
+        for source in inputs:
+            if Path(source).resolve() == report.resolve():
+                raise InputError("the report folder is an input", source=str(report))
+
+
+def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
+                controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
+                tolerance: np.ndarray | None = None, progress: Progress | None = None,
+                workers: int | None = 1) -> RunResult:
+    """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
+    writes. ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
+    when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
+    samples; more than 1 needs the calling script's own code under
+    ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
+    Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
+    machine's limits cannot be kept."""
+    timings: dict[str, float] = {}
+    total = 4
+
+    def step(done: int, message: str) -> None:
+        if progress is not None:
+            progress(done, total, message)
+
+    inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
+    check_run_outputs(outputs, inputs)
+    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    step(0, f"read and plan {program}")
+    start = time.perf_counter()
+    machine_obj = load_machine(machine)
+    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    planned, passthrough = load_program_trajectory(program, machine_obj, tcp=tcp)
+    line = getattr(planned, "line", None)
+    timings["plan"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    limits = AxisLimits.from_machine(machine_obj)
+
+    def round_progress(round_: int, message: str) -> None:
+        step(1, f"{message}, round {round_}")
+
+    limited = compensate_within_limits(planned, machine_obj.kinematics, models, limits,
+                                       line=line, iterations=iterations,
+                                       progress=round_progress)
+    timings["compensate"] = time.perf_counter() - start
+
+    step(2, f"virtual machine, uncompensated and compensated "
+            f"({limited.reference.n_samples} samples each)")
+    start = time.perf_counter()
+    simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
+                                         machine, controller, workers=workers)
+    timings["virtual machine (both)"] = time.perf_counter() - start
+
+    step(3, "write G-code")
+    start = time.perf_counter()
+    commands = limited.result.trajectory
+    info = ProgramInfo(machine=machine_obj.name, controller=controller,
+                       method=f"contour pre-compensation within axis limits, passes "
+                              f"{limited.result.iterations}",
+                       source=str(program))
+    program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
+                                 passthrough=passthrough, line=limited.line)
+    timings["gcode"] = time.perf_counter() - start
+    return RunResult(source=str(program), machine=machine_obj, controller=controller,
+                     planned=planned, passthrough=passthrough, limited=limited,
+                     simulated_before=simulated[0], simulated_after=simulated[1],
+                     program=program_text, tolerance=tolerance, timings=timings)
+
+
+def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
+                             machine: str | Path, controller: str, *,
+                             workers: int | None = 1) -> tuple[ContourErrors, ContourErrors]:
+    """Contour errors of the uncompensated (``reference.q``) and the compensated commands on
+    the realistic virtual machine (discrete controller, friction, feed-forward friction
+    compensation), against ``reference``. The two runs are independent time loops: with
+    ``workers`` >= 2 they run in two processes at once (None: see :func:`run_program`)."""
+    spec = str(Path(machine).resolve()) if Path(str(machine)).exists() else str(machine)
+    jobs = [(spec, controller, reference, q) for q in (reference.q, q_compensated)]
+    if workers is None:
+        workers = (min(2, os.cpu_count() or 1) if reference.n_samples >= PARALLEL_MIN_SAMPLES
+                   else 1)
+    if workers < 2:
+        return tuple(_virtual_machine_errors(*job) for job in jobs)
+    # forkserver: a clean process, whatever threads (pyarrow, BLAS) this one has started.
+    context = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
+        futures = [pool.submit(_virtual_machine_errors, *job) for job in jobs]
+        return tuple(f.result() for f in futures)
+
+
+def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory,
+                            q: np.ndarray) -> ContourErrors:
+    machine_obj = load_machine(machine)
+    sim = simulate(reference.t, q, machine_obj, controller, mode="discrete", friction=True,
+                   ff_friction=True)
+    return contour_errors(ReferencePath.from_trajectory(reference), sim.q_act,
+                          machine_obj.kinematics)
+
+
+def write_run_outputs(result: RunResult, outputs: RunOutputs,
+                      inputs: Sequence[str | Path]) -> list[Path]:
+    """Write the program and the optional stream and command files (each atomically)."""
+    commands = result.commands
+    final = check_limits(commands.q, commands.ts, AxisLimits.from_machine(result.machine))
+    if not final.ok:  # compensate_within_limits guarantees it; this guards the writing
+        raise MachineLimitError("refusing to write commands beyond the machine's limits: "
+                                + final.format())
+    written = [write_text(outputs.program, result.program.text, inputs=inputs)]
+    info = ProgramInfo(machine=result.machine.name, controller=result.controller,
+                       method="contour pre-compensation within axis limits",
+                       source=result.source)
+    if outputs.stream is not None:
+        written.append(write_text(outputs.stream, halstreamer_lines(commands.q, commands.ts,
+                                                                    info=info),
+                                  inputs=inputs))
+    if outputs.commands is not None:
+        written.append(write_columns(outputs.commands, trajectory_columns(commands),
+                                     inputs=inputs))
+    return written
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """What ``export`` wrote."""
+
+    path: Path
+    format: str
+    n_samples: int
+    n_blocks: int | None
+
+
+def export_format(path: Path, format: str | None) -> str:
+    """The export format: given, or from the output's extension."""
+    if format is not None:
+        if format not in EXPORT_FORMATS:
+            raise InputError(f"unknown format {format!r}; use one of {', '.join(EXPORT_FORMATS)}",
+                             field="format")
+        return format
+    suffix = path.suffix.lower()
+    if suffix in GCODE_SUFFIXES:
+        return "gcode"
+    if suffix in SUPPORTED_SUFFIXES:
+        return suffix[1:]
+    raise InputError(f"cannot tell the format from the extension {suffix or '(none)'!r}; "
+                     "give --format", source=str(path))
+
+
+def export_commands(commands_path: str | Path, output: str | Path, *, format: str | None = None,
+                    machine: str | Path = "zhang2013", controller: str = "",
+                    tolerance: np.ndarray | None = None) -> ExportResult:
+    """Write a command file (``t,X,Y,Z,A,C[,...]``) as G-code, a halstreamer file or a table.
+
+    G-code and halstreamer files are programs a machine runs: the commands must keep the
+    machine's limits (checked first; :class:`~precontour.errors.MachineLimitError` names the
+    worst excess otherwise), and a halstreamer file needs samples at the servo period.
+    """
+    output = Path(output)
+    format = export_format(output, format)
+    inputs = [commands_path] + ([machine] if Path(str(machine)).exists() else [])
+    suffixes = {"gcode": GCODE_SUFFIXES, "halstreamer": None}.get(format, (f".{format}",))
+    check_output_path(output, inputs=inputs, suffixes=suffixes)
+    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    traj = read_trajectory(commands_path)
+    if format not in ("gcode", "halstreamer"):
+        write_columns(output, trajectory_columns(traj), inputs=inputs)
+        return ExportResult(output, format, traj.n_samples, None)
+    machine_obj = load_machine(machine)
+    if controller:
+        machine_obj.controller(controller)  # an unknown name is an error, as elsewhere
+    check = check_limits(traj.q, traj.ts, AxisLimits.from_machine(machine_obj), t0=traj.t[0])
+    if not check.ok:
+        raise MachineLimitError(f"{commands_path}: the commands exceed the machine's limits "
+                                f"({check.format()}); `precontour run` slows such places down "
+                                "and compensates again")
+    info = ProgramInfo(machine=machine_obj.name, controller=controller,
+                       method="exported commands", source=str(commands_path))
+    if format == "halstreamer":
+        if abs(traj.ts - machine_obj.servo_period) > SERVO_PERIOD_RTOL * machine_obj.servo_period:
+            raise InputError(f"sampled every {traj.ts:.6g} s, but a halstreamer file needs one "
+                             f"line per servo period ({machine_obj.servo_period:g} s of "
+                             f"{machine_obj.name})", source=str(commands_path), field="t")
+        write_text(output, halstreamer_lines(traj.q, traj.ts, info=info), inputs=inputs)
+        return ExportResult(output, format, traj.n_samples, None)
+    program = gcode_program(traj.t, traj.q, tolerance=tolerance, info=info)
+    write_text(output, program.text, inputs=inputs)
+    return ExportResult(output, format, traj.n_samples, program.n_blocks)
+
+
+__all__ = ["EXPORT_FORMATS", "RunOutputs", "RunResult", "ExportResult", "check_run_outputs",
+           "export_commands", "export_format", "load_program_trajectory", "run_program",
+           "write_run_outputs"]

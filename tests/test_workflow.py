@@ -1,0 +1,263 @@
+"""``precontour run`` and ``precontour export`` end to end on a small built-in path: the written
+program read back by an independent G-code parser, the halstreamer file, the limits checked
+with plain finite differences; every bad input one line, exit 2, nothing written, inputs
+untouched."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from precontour.cli import main
+from precontour.machine.machine_file import load_machine
+from precontour.tables import read_trajectory
+from precontour.trajectory.builtin_paths import builtin_path
+
+gcodeparser = pytest.importorskip("gcodeparser")
+
+TOL = np.array([1e-3] * 3 + [1e-5] * 2)
+
+
+def _write_cl(path, name="circle"):
+    tp = builtin_path(name)
+    np.savetxt(path, np.column_stack([tp.P, tp.O]), delimiter=",",
+               header="Px,Py,Pz,Oi,Oj,Ok", comments="")
+    return path
+
+
+def _read_gcode(text):
+    """Block end times and positions (mm, rad): G0 start, G1 in inverse time, G4 dwell."""
+    times, points, now = [], [], 0.0
+    for item in gcodeparser.parse_gcode_lines(text, include_comments=False):
+        code, params = item.command, item.params
+        if code == ("G", 0):
+            times.append(now)
+            points.append([params[a] for a in "XYZAC"])
+        elif code == ("G", 1):
+            now += 60.0 / params["F"]
+            times.append(now)
+            points.append([params.get(a, points[-1][i]) for i, a in enumerate("XYZAC")])
+        elif code == ("G", 4):
+            now += params["P"]
+            times.append(now)
+            points.append(points[-1])
+    points = np.array(points, dtype=float)
+    points[:, 3:] = np.radians(points[:, 3:])
+    return np.array(times), points
+
+
+def _listing(folder):
+    return sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in folder.rglob("*"))
+
+
+@pytest.fixture(scope="module")
+def run_outputs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("run")
+    program = _write_cl(folder / "circle.csv")
+    before = program.read_bytes()
+    code = main(["run", str(program), "--controller", "pid-high", "-o", str(folder / "out.ngc"),
+                 "--stream", str(folder / "out.txt"), "--commands", str(folder / "cmd.csv"),
+                 "--report", str(folder / "report")])
+    assert program.read_bytes() == before
+    return code, folder
+
+
+def test_run_writes_a_program_that_reproduces_the_commands(run_outputs):
+    code, folder = run_outputs
+    assert code == 0
+    commands = read_trajectory(folder / "cmd.csv")
+    assert commands.has_reference
+    times, points = _read_gcode((folder / "out.ngc").read_text())
+    assert times[-1] == pytest.approx(commands.t[-1] - commands.t[0], abs=1e-9)
+    rebuilt = np.column_stack([np.interp(commands.t - commands.t[0], times, points[:, i])
+                               for i in range(5)])
+    assert np.all(np.abs(rebuilt - commands.q).max(axis=0) <= TOL)
+    assert np.diff(times).min() >= 0.001 * (1 - 1e-9)
+
+
+def test_run_stream_is_the_commands_at_the_servo_period(run_outputs):
+    _, folder = run_outputs
+    commands = read_trajectory(folder / "cmd.csv")
+    text = (folder / "out.txt").read_text()
+    assert "loadrt streamer depth=2000 cfg=fffff" in text
+    rows = np.array([[float(f) for f in line.split()] for line in text.splitlines()
+                     if not line.startswith("#")])
+    assert rows.shape == commands.q.shape
+    np.testing.assert_allclose(rows[:, :3], commands.q[:, :3], atol=1e-12)
+    np.testing.assert_allclose(np.radians(rows[:, 3:]), commands.q[:, 3:], atol=1e-12)
+
+
+def test_run_commands_keep_the_machine_limits(run_outputs):
+    _, folder = run_outputs
+    machine = load_machine("zhang2013")
+    commands = read_trajectory(folder / "cmd.csv")
+    ts = commands.ts
+    for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
+        peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / ts**order
+        limit = np.array([getattr(d, key) for d in machine.drives])
+        assert np.all(peak <= limit * (1 + 1e-9)), (key, peak / limit)
+
+
+def test_run_report_and_table(run_outputs, capsys):
+    _, folder = run_outputs
+    names = {p.name for p in (folder / "report").iterdir()}
+    assert {"index.html", "contour_errors.png", "speed_and_limits.png", "summary.txt"} <= names
+    summary = (folder / "report" / "summary.txt").read_text()
+    for row in ("predicted before", "predicted after", "simulated before", "simulated after",
+                "duration", "blocks written"):
+        assert row in summary
+    # circle / pid-high: compensation breaks the A and C jerk limits near the end; run slows
+    # down there and says so.
+    assert "slowed t = " in summary
+
+
+def test_export_formats_round_trip(run_outputs, tmp_path, capsys):
+    _, folder = run_outputs
+    source = folder / "cmd.csv"
+    before = source.read_bytes()
+    commands = read_trajectory(source)
+    assert main(["export", str(source), "-o", str(tmp_path / "a.ngc"), "--tol", "0.002,2e-5"]) == 0
+    times, points = _read_gcode((tmp_path / "a.ngc").read_text())
+    rebuilt = np.column_stack([np.interp(commands.t - commands.t[0], times, points[:, i])
+                               for i in range(5)])
+    assert np.all(np.abs(rebuilt - commands.q).max(axis=0) <= 2 * TOL)
+    assert main(["export", str(source), "--format", "halstreamer", "-o",
+                 str(tmp_path / "a.txt")]) == 0
+    assert main(["export", str(source), "-o", str(tmp_path / "a.npz")]) == 0
+    np.testing.assert_array_equal(read_trajectory(tmp_path / "a.npz").q, commands.q)
+    assert main(["export", str(source), "--format", "csv", "-o", str(tmp_path / "b.csv")]) == 0
+    np.testing.assert_array_equal(read_trajectory(tmp_path / "b.csv").q, commands.q)
+    assert source.read_bytes() == before
+    assert "blocks" in capsys.readouterr().out
+
+
+def _fast_commands(path):
+    """The circle's planned trajectory played five times too fast: beyond the limits."""
+    from precontour.tables import trajectory_columns, write_columns
+    from precontour.trajectory.generate import generate_trajectory
+    traj = generate_trajectory(builtin_path("circle"), load_machine("zhang2013"))
+    columns = trajectory_columns(traj)
+    columns["t"] = columns["t"] / 5
+    write_columns(path, columns)
+    return path
+
+
+def _fail(argv, capsys, pattern, folder, inputs=()):
+    snapshot = _listing(folder)
+    contents = [p.read_bytes() for p in inputs]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in err if line.startswith("precontour: error")]
+    assert len(errors) == 1 and err[-1] == errors[0], err
+    assert re.search(pattern, errors[0]), errors[0]
+    assert _listing(folder) == snapshot
+    assert [p.read_bytes() for p in inputs] == contents
+
+
+def test_export_bad_inputs(tmp_path, capsys):
+    fast = _fast_commands(tmp_path / "fast.csv")
+    sparse = tmp_path / "sparse.csv"
+    sparse.write_text("t,X,Y,Z,A,C\n" + "".join(f"{0.002 * k},{k * 1e-3},0,0,0,0\n"
+                                                  for k in range(20)))
+    cases = [
+        (["export", str(fast), "-o", str(tmp_path / "f.ngc")], r"exceed the machine's limits"),
+        (["export", str(fast), "--format", "halstreamer", "-o", str(tmp_path / "f.txt")],
+         r"exceed the machine's limits"),
+        (["export", str(sparse), "--format", "halstreamer", "-o", str(tmp_path / "s.txt")],
+         r"sparse\.csv, field 't': sampled every 0\.002 s"),
+        (["export", str(sparse), "-o", str(tmp_path / "s.txt")], r"give --format"),
+        (["export", str(sparse), "-o", str(sparse)], r"refusing to overwrite an input"),
+        (["export", str(sparse), "-o", str(tmp_path / "missing" / "s.ngc")],
+         r"output directory does not exist"),
+        (["export", str(tmp_path / "nope.csv"), "-o", str(tmp_path / "s.ngc")],
+         r"nope\.csv: no such file"),
+        (["export", str(sparse), "--machine", "nope", "-o", str(tmp_path / "s.ngc")],
+         r"not a built-in machine"),
+        (["export", str(sparse), "--format", "gcode", "-o", str(tmp_path / "s.csv")],
+         r"unsupported output type '\.csv'"),
+    ]
+    for argv, pattern in cases:
+        _fail(argv, capsys, pattern, tmp_path, inputs=[fast, sparse])
+    for bad in ("0", "x", "1e-9", "0.001,1e-5,3"):
+        with pytest.raises(SystemExit) as exit_info:
+            main(["export", str(sparse), "--tol", bad, "-o", str(tmp_path / "s.ngc")])
+        assert exit_info.value.code == 2
+        assert "--tol" in capsys.readouterr().err
+
+
+def test_run_bad_inputs(tmp_path, capsys):
+    program = _write_cl(tmp_path / "p.csv", "paper")
+    gcode = tmp_path / "home.ngc"
+    gcode.write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG28 Z0\n")
+    machine_file = tmp_path / "m.toml"
+    from precontour.machine.machine_file import builtin_machine_text
+    machine_file.write_text(builtin_machine_text())
+    report_file = tmp_path / "report.txt"
+    report_file.write_text("not a folder")
+    out = str(tmp_path / "o.ngc")
+    inputs = [program, gcode, machine_file, report_file]
+    cases = [
+        (["run", str(tmp_path / "none.ngc"), "-o", out], r"none\.ngc"),
+        (["run", str(program), "-o", str(tmp_path / "o.csv")], r"unsupported output type"),
+        (["run", str(program), "-o", out, "--controller", "pid-medium"],
+         r"unknown controller 'pid-medium'"),
+        (["run", str(program), "-o", out, "--stream", out], r"two outputs"),
+        (["run", str(program), "-o", out, "--commands", str(program)],
+         r"refusing to overwrite an input"),
+        (["run", str(program), "--machine", str(machine_file), "-o", out,
+          "--stream", str(machine_file)], r"m\.toml: refusing to overwrite an input"),
+        (["run", str(program), "-o", out, "--report", str(report_file)],
+         r"report folder is a file"),
+        (["run", str(program), "-o", out, "--report", str(tmp_path / "a" / "b")],
+         r"parent does not exist"),
+        (["run", str(gcode), "-o", out], r"home\.ngc, line 3, word 'G28'"),
+        (["run", str(program), "--tcp", "-o", out], r"--tcp applies to G-code programs only"),
+    ]
+    for argv, pattern in cases:
+        _fail(argv, capsys, pattern, tmp_path, inputs=inputs)
+
+
+def test_run_reads_gcode_in_machine_axes(tmp_path, capsys):
+    """A G-code program (G0, then G1 with feeds in mm/min) in, a compensated one out; the
+    progress goes to stderr, the table to stdout."""
+    from precontour.trajectory.generate import generate_trajectory
+    machine = load_machine("zhang2013")
+    planned = generate_trajectory(builtin_path("paper"), machine)
+    q = planned.q[::25]
+    lines = ["%", "(test part)", "G21 G90 G94", "G0 " + _axis_words(q[0])]
+    lines += [f"G1 {_axis_words(row)} F3000" for row in q[1:]]
+    lines += ["M2", "%"]
+    program = tmp_path / "part.ngc"
+    program.write_text("\n".join(lines) + "\n")
+    before = program.read_bytes()
+    assert main(["run", str(program), "-o", str(tmp_path / "part-comp.ngc")]) == 0
+    captured = capsys.readouterr()
+    assert "compensate" in captured.err and "virtual machine" in captured.err
+    assert "simulated after" in captured.out and "blocks written" in captured.out
+    assert program.read_bytes() == before
+    times, points = _read_gcode((tmp_path / "part-comp.ngc").read_text())
+    assert len(times) > 10 and np.all(np.diff(times) >= 0.001 * (1 - 1e-9))
+    # The compensated program stays close to the programmed path: within the servo lag.
+    assert np.abs(points[0] - q[0]).max() < 0.5
+
+
+def _axis_words(row):
+    return (f"X{row[0]:.4f} Y{row[1]:.4f} Z{row[2]:.4f} A{np.degrees(row[3]):.5f} "
+            f"C{np.degrees(row[4]):.5f}")
+
+
+def test_virtual_machine_check_in_two_processes_is_identical():
+    from precontour.trajectory.generate import generate_trajectory
+    from precontour.workflow import check_on_virtual_machine
+    machine = load_machine("zhang2013")
+    planned = generate_trajectory(builtin_path("paper"), machine)
+    shifted = planned.q + 0.001
+    serial = check_on_virtual_machine(planned, shifted, "zhang2013", "pid-low", workers=1)
+    parallel = check_on_virtual_machine(planned, shifted, "zhang2013", "pid-low", workers=2)
+    for a, b in zip(serial, parallel):
+        np.testing.assert_array_equal(a.tip, b.tip)
+        np.testing.assert_array_equal(a.orientation, b.orientation)
+    # Two different runs, each computed once in each process.
+    assert serial[0].tip.max() != serial[1].tip.max()
