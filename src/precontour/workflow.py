@@ -30,7 +30,7 @@ from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
 from .toolpath import EXTENSIONS, read_program, read_toolpath, toolpath_format
 from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
-                               halstreamer_lines)
+                               halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
 from .trajectory.program import program_trajectory
 from .trajectory.limits import AxisLimits, check_limits
@@ -68,7 +68,9 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
         program = read_program(path, machine, tcp=tcp)
         for text in program.notices:
             notice(text)
-        return program_trajectory(program, machine, ts=machine.servo_period), program.passthrough
+        # the output gives machine axes: lines that switch TCP mode on or off stay comments
+        passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp, tcp_all=tcp)
+        return program_trajectory(program, machine, ts=machine.servo_period), passthrough
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")

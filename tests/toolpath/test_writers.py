@@ -212,3 +212,21 @@ def test_any_commands_round_trip_within_tolerance(seed, n, tol_linear, tol_rotar
     times, points = _read_back(program.text)
     assert times[-1] == pytest.approx(t[-1], abs=1e-9)
     assert np.all(np.abs(_interpolate(times, points, t) - q) <= tolerance)
+
+
+def test_tcp_switches_become_comments_in_a_machine_axis_program():
+    from precontour.toolpath.writers import machine_axes_passthrough
+
+    lines = ((1, "M428 ;TCP:xyzac"), (2, "S600 M3"), (3, "G43.4 H1 (tcp on)"), (4, "T2 M6"),
+             (5, "TRAORI"), (6, "M429"), (7, "G49"), (8, "M30"), (9, "(G43.4 in a comment)"))
+    # a program without TCP keeps everything
+    assert machine_axes_passthrough(lines, tcp=False) == lines
+    kept = dict(machine_axes_passthrough(lines, tcp=True, tcp_all=True))
+    for line in (1, 3, 5, 6, 7):
+        assert kept[line].startswith("(precontour: left out") and kept[line].endswith(")")
+        assert kept[line].count("(") == 1 and kept[line].count(")") == 1
+    assert (kept[2], kept[4], kept[8], kept[9]) == ("S600 M3", "T2 M6", "M30",
+                                                    "(G43.4 in a comment)")
+    # switched by G43.4 in the program (not --tcp): other M codes are the program's own
+    kept = dict(machine_axes_passthrough(lines, tcp=True, tcp_all=False))
+    assert kept[1] == "M428 ;TCP:xyzac" and kept[3].startswith("(precontour: left out")

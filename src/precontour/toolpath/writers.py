@@ -170,6 +170,39 @@ def _decimate_scan(t, q, tol, must_keep):  # pragma: no cover - compiled
     return keep
 
 
+#: Program words that switch tool centre point mode on or off (Fanuc/LinuxCNC, Sinumerik).
+_TCP_SWITCH = re.compile(r"G0*43\.[45](?!\d)|G0*49(?!\d)|TRAORI|TRAFOOF", re.IGNORECASE)
+#: M codes every CNC knows; any other M code in a program read with ``--tcp`` may be the
+#: controller's own TCP switch (LinuxCNC's remapped M428/M429).
+_STANDARD_M = re.compile(r"M0*(?:[0-9]|30)(?!\d)", re.IGNORECASE)
+_ANY_M = re.compile(r"M\d+", re.IGNORECASE)
+
+
+def machine_axes_passthrough(passthrough: Sequence[tuple[int, str]], *, tcp: bool,
+                             tcp_all: bool = False) -> tuple[tuple[int, str], ...]:
+    """Pass-through lines of a program made safe for an output in machine axes.
+
+    A written program gives machine axes, so a line that would switch the controller into
+    tool centre point mode must not reach it: where the source program used TCP (``tcp``),
+    G43.4/G43.5/G49/TRAORI/TRAFOOF lines, and with ``tcp_all`` (the whole program read with
+    ``--tcp``) also lines with a non-standard M code (the controller's own TCP switch), are
+    kept only as comments saying so.
+    """
+    if not tcp:
+        return tuple(passthrough)
+    kept = []
+    for line, text in passthrough:
+        code = text.split(";", 1)[0]
+        code = re.sub(r"\([^)]*\)", "", code)
+        switch = bool(_TCP_SWITCH.search(code)) or (
+            tcp_all and any(not _STANDARD_M.fullmatch(m) for m in _ANY_M.findall(code)))
+        if switch:
+            text = "(" + _comment("precontour: left out, this program is in machine axes, not "
+                                  "tool centre point mode: " + text) + ")"
+        kept.append((line, text))
+    return tuple(kept)
+
+
 def gcode_program(t: np.ndarray, q: np.ndarray, *, tolerance: np.ndarray | None = None,
                   info: ProgramInfo = ProgramInfo(),
                   passthrough: Sequence[tuple[int, str]] | None = None,
