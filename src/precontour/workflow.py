@@ -244,7 +244,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                               f"{limited.result.iterations}",
                        source=str(program))
     program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
-                                 passthrough=passthrough, line=limited.line)
+                                 passthrough=passthrough, line=limited.line,
+                                 axis_names=machine_obj.axis_names)
     timings["gcode"] = time.perf_counter() - start
     return RunResult(source=str(program), machine=machine_obj, controller=controller,
                      planned=planned, passthrough=passthrough, limited=limited,
@@ -366,7 +367,8 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
                              f"{machine_obj.name})", source=str(commands_path), field="t")
         write_text(output, halstreamer_lines(traj.q, traj.ts, info=info), inputs=inputs)
         return ExportResult(output, format, traj.n_samples, None)
-    program = gcode_program(traj.t, traj.q, tolerance=tolerance, info=info)
+    program = gcode_program(traj.t, traj.q, tolerance=tolerance, info=info,
+                            axis_names=machine_obj.axis_names)
     write_text(output, program.text, inputs=inputs)
     return ExportResult(output, format, traj.n_samples, program.n_blocks)
 

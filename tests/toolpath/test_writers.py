@@ -230,3 +230,25 @@ def test_tcp_switches_become_comments_in_a_machine_axis_program():
     # switched by G43.4 in the program (not --tcp): other M codes are the program's own
     kept = dict(machine_axes_passthrough(lines, tcp=True, tcp_all=False))
     assert kept[1] == "M428 ;TCP:xyzac" and kept[3].startswith("(precontour: left out")
+
+
+def test_b_c_machine_program_uses_b_words_and_reads_back():
+    from precontour import load_machine
+    from precontour.toolpath import read_program
+    from precontour.toolpath.writers import gcode_program
+
+    machine = load_machine("linuxcnc-xyzbc-trt")
+    t = np.arange(200) * 1e-3
+    s = t / t[-1]
+    q = np.column_stack([10 * s, -5 * s, 20 + 0 * s, np.radians(-30 * s), np.radians(90 * s)])
+    text = gcode_program(t, q, axis_names=machine.axis_names).text
+    motion = [line for line in text.splitlines() if line.startswith(("G0 ", "G1 "))]
+    assert motion and all(" B" in line and " A" not in line for line in motion)
+    assert "machine axes X Y Z mm, B C degrees" in text
+    import pathlib
+    import tempfile
+    with tempfile.TemporaryDirectory() as folder:
+        path = pathlib.Path(folder) / "bc.ngc"
+        path.write_text(text)
+        program = read_program(path, machine)
+    np.testing.assert_allclose(program.q[-1], q[-1], rtol=0, atol=1e-5)

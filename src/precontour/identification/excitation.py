@@ -218,5 +218,5 @@ def write_excitation(path, traj: Trajectory, machine, *, inputs=()) -> None:
     if PROGRAM_SUFFIXES[suffix] == "halstreamer":
         text = halstreamer_lines(traj.q, traj.ts, info=info)
     else:
-        text = gcode_program(traj.t, traj.q, info=info).text
+        text = gcode_program(traj.t, traj.q, info=info, axis_names=machine.axis_names).text
     write_text(path, text, inputs=inputs)

@@ -206,8 +206,12 @@ def machine_axes_passthrough(passthrough: Sequence[tuple[int, str]], *, tcp: boo
 def gcode_program(t: np.ndarray, q: np.ndarray, *, tolerance: np.ndarray | None = None,
                   info: ProgramInfo = ProgramInfo(),
                   passthrough: Sequence[tuple[int, str]] | None = None,
-                  line: np.ndarray | None = None) -> GcodeProgram:
+                  line: np.ndarray | None = None,
+                  axis_names: Sequence[str] = AXES) -> GcodeProgram:
     """Machine-axis G-code for the commands ``q`` (N, 5: mm, rad) at times ``t`` (s).
+
+    ``axis_names`` are the words written for the five axes (``Machine.axis_names``: X Y Z B C
+    on a B-C machine).
 
     Parameters
     ----------
@@ -262,25 +266,29 @@ def gcode_program(t: np.ndarray, q: np.ndarray, *, tolerance: np.ndarray | None 
     elif passthrough:
         before_start = [text for _, text in passthrough]
 
-    text_lines = list(_gcode_lines(t, q, kept, info, tolerance, before_start, inserted))
+    text_lines = list(_gcode_lines(t, q, kept, info, tolerance, before_start, inserted,
+                                    tuple(axis_names)))
     n_blocks = kept.size - 1
     return GcodeProgram(text="".join(text_lines), kept=kept, n_blocks=n_blocks,
                         tolerance=tolerance)
 
 
-def _gcode_lines(t, q, kept, info, tolerance, before_start, inserted) -> Iterator[str]:
+def _gcode_lines(t, q, kept, info, tolerance, before_start, inserted,
+                 axis_names) -> Iterator[str]:
     duration = t[kept[-1]] - t[kept[0]]
+    linear, rotary = " ".join(axis_names[:3]), " ".join(axis_names[3:])
     yield "%\n"
-    yield "(precontour: compensated axis commands, machine axes X Y Z mm, A C degrees)\n"
+    yield (f"(precontour: compensated axis commands, machine axes {linear} mm, {rotary} "
+           "degrees)\n")
     for text in info.comment_lines():
         yield f"({_comment(text)})\n"
-    yield (f"(tolerance {tolerance[0]:g} mm on X Y Z, {tolerance[3]:g} rad on A C; "
+    yield (f"(tolerance {tolerance[0]:g} mm on {linear}, {tolerance[3]:g} rad on {rotary}; "
            f"{kept.size - 1} blocks, {duration:.3f} s of motion)\n")
     yield "(inverse-time feed G93: F = 60 / block time in s)\n"
     yield "G21 G90 G94\n"
     for text in before_start:
         yield text.rstrip("\n") + "\n"
-    words = _axis_words(q[kept])
+    words = _axis_words(q[kept], axis_names)
     yield f"G0 {words[0]}\n"
     yield f"G64 P{tolerance[0]:g}\n"
     yield "G93\n"
@@ -304,12 +312,13 @@ def _gcode_lines(t, q, kept, info, tolerance, before_start, inserted) -> Iterato
     yield "%\n"
 
 
-def _axis_words(q: np.ndarray) -> list[str]:
-    """``X.. Y.. Z.. A.. C..`` per row: mm, and degrees for A and C."""
+def _axis_words(q: np.ndarray, axis_names: Sequence[str] = AXES) -> list[str]:
+    """``X.. Y.. Z.. A.. C..`` per row (the machine's axis letters): mm, and degrees for the
+    rotary axes."""
     decimals = [LINEAR_DECIMALS] * 3 + [ANGLE_DECIMALS] * 2
     values = np.column_stack([np.round(q[:, :3], LINEAR_DECIMALS),
                               np.round(np.degrees(q[:, 3:]), ANGLE_DECIMALS)]) + 0.0  # no -0
-    fmt = " ".join(f"{axis}{{:.{d}f}}" for axis, d in zip(AXES, decimals))
+    fmt = " ".join(f"{axis}{{:.{d}f}}" for axis, d in zip(axis_names, decimals))
     return [fmt.format(*row) for row in values.tolist()]
 
 
