@@ -19,6 +19,7 @@ same script measures an older version of the package (``PYTHONPATH=old/src``) fo
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import resource
@@ -37,11 +38,22 @@ CACHE = Path(tempfile.gettempdir()) / "precontour-bench"
 STAGES = ("trajectory generation", "fit + predict", "reference curves", "contour errors",
           "compensate, 1 pass", "compensate, --iterations 4",
           "virtual machine (discrete, friction)", "lsim of the 5 loops")
-#: Stages owned elsewhere and not yet optimized: measured as they are today.
-PRE_OPTIMIZATION = ("trajectory generation", "virtual machine (discrete, friction)")
 CONTROLLER = "pid-high"
 #: CL points per trajectory sample of the synthetic path (measured: 100,000 -> 119,750).
 SAMPLES_PER_POINT = 1.1975
+
+
+def _source_digest() -> str:
+    """A digest of the installed package's source and data files."""
+    import precontour
+
+    digest = hashlib.sha1()
+    root = Path(precontour.__file__).parent
+    for file in sorted(root.rglob("*")):
+        if file.suffix in (".py", ".toml"):
+            digest.update(str(file.relative_to(root)).encode())
+            digest.update(file.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def _trajectory(n_samples: int):
@@ -51,8 +63,11 @@ def _trajectory(n_samples: int):
     from precontour.trajectory.sampled import Trajectory
     from bench_trajectory import synthetic_path
 
-    CACHE.mkdir(exist_ok=True)
-    path = CACHE / f"traj_{n_samples}.npz"
+    # One cache per version of the package: the temporary folder is shared, and a trajectory
+    # planned by another version (other kinematics) does not match this one's reference.
+    folder = CACHE / _source_digest()
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"traj_{n_samples}.npz"
     if path.exists():
         data = np.load(path)
         return Trajectory(data["t"], data["q"], data["P"], data["O"])
@@ -191,6 +206,10 @@ def main(argv: list[str]) -> None:
     if argv and argv[0] == "--long-child":
         _long_program(int(argv[1]))
         return
+    if argv and argv[0] == "--plan":
+        _trajectory(int(argv[1]))
+        print(json.dumps({}))
+        return
     sizes = [10_000, 100_000, 1_000_000]
     if "--sizes" in argv:
         sizes = [int(float(s)) for s in argv[argv.index("--sizes") + 1].split(",")]
@@ -203,15 +222,16 @@ def main(argv: list[str]) -> None:
     print("|---|---:|---:|---:|---:|---:|---:|")
     lsim_us = None
     for n in sizes:
-        _trajectory(n)
+        # planned in a child: Linux keeps a process's peak memory across fork and exec, so a
+        # trajectory planned here would show as every stage's peak memory
+        _child("--plan", str(n))
         results = {name: _child("--stage", name, str(n)) for name in stages}
         lsim = results["lsim of the 5 loops"]["seconds"]
         samples = results["lsim of the 5 loops"]["samples"]
         lsim_us = 1e6 * lsim / samples
         for name in stages:
             r = results[name]
-            label = name + (" (pre-optimization)" if name in PRE_OPTIMIZATION else "")
-            print(f"| {label} | {r['samples']:,} | {r['seconds']:.3g} | "
+            print(f"| {name} | {r['samples']:,} | {r['seconds']:.3g} | "
                   f"{1e6 * r['seconds'] / r['samples']:.3g} | {r['duration'] / r['seconds']:.0f} | "
                   f"{lsim / r['seconds']:.2g} | {r['peak_bytes'] / 2**20:.0f} |", flush=True)
     if "--long" in argv:
