@@ -757,7 +757,7 @@ def run_run(args: argparse.Namespace) -> int:
         result = run_program(args.program, outputs, machine=args.machine,
                              controller=args.controller, tcp=args.tcp,
                              iterations=args.iterations, tolerance=args.tol,
-                             progress=progress, workers=None)
+                             progress=progress, workers=1)
         files = []
         if args.report is not None:
             from .reports.run_report import write_run_report
