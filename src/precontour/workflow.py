@@ -157,6 +157,12 @@ class RunResult:
             lines.append("  slowed " + s.format())
         if len(slow) > 10:
             lines.append(f"  ... and {len(slow) - 10} more windows")
+        left_out = self.limited.uncompensated
+        if left_out:
+            lines.append(f"compensation left out in {len(left_out)} window(s) where slowing down "
+                         "could not keep the limits (the planned commands there): "
+                         + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in left_out[:10])
+                         + (" ..." if len(left_out) > 10 else ""))
         lines.append(f"blocks written {self.program.n_blocks} (tolerance "
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")

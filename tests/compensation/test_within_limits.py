@@ -61,8 +61,25 @@ def test_impossible_limits_are_errors(machine, circle):
     travel = dataclasses.replace(limits, position_max=np.full(5, 10.0))
     with pytest.raises(MachineLimitError, match="travel"):
         compensate_within_limits(circle, machine.kinematics, models, travel)
+    # the planned commands themselves break these limits: no taper can help
+    tight = dataclasses.replace(limits, jerk=limits.jerk * 0.01)
     with pytest.raises(MachineLimitError, match=r"after 1 compensation round\(s\)"):
-        compensate_within_limits(circle, machine.kinematics, models, limits, max_rounds=1)
+        compensate_within_limits(circle, machine.kinematics, models, tight, max_rounds=1)
+
+
+def test_windows_slowing_cannot_cure_fall_back_to_the_planned_commands(machine, circle):
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    first = compensate_within_limits(circle, machine.kinematics, models, limits)
+    assert first.rounds >= 2 and not first.uncompensated   # slowing alone keeps the limits
+    # with no round to slow down in, the windows over a limit keep the planned commands
+    once = compensate_within_limits(circle, machine.kinematics, models, limits, max_rounds=1)
+    assert once.check.ok and once.uncompensated
+    t = once.reference.t
+    for start, stop in once.uncompensated:
+        inside = (t >= start) & (t <= stop)
+        middle = inside & (t >= start + 0.15) & (t <= stop - 0.15)
+        np.testing.assert_array_equal(once.result.trajectory.q[middle], circle.q[middle])
 
 
 def test_splicing_matches_compensating_everything_again(machine, circle):
@@ -79,3 +96,29 @@ def test_splicing_matches_compensating_everything_again(machine, circle):
     assert a["tip_max_um"] == pytest.approx(b["tip_max_um"], rel=0.05)
     assert a["ori_max_mrad"] == pytest.approx(b["ori_max_mrad"], rel=0.05)
     assert spliced.result.before.tip.max() == pytest.approx(full.result.before.tip.max())
+
+
+def test_taper_leaves_the_correction_out_where_it_breaks_a_limit_and_is_smooth():
+    from precontour.compensation.within_limits import TAPER_HOLD, taper_corrections
+
+    ts = 1e-3
+    n = 4000
+    t = np.arange(n) * ts
+    planned = np.column_stack([np.sin(t)] * 5)
+    correction = np.full((n, 5), 1e-3)
+    correction[2000:, 4] += 1e-4 * (t[2000:] - t[2000])   # a kink in C's correction at 2.0 s
+    over = np.zeros(n, dtype=bool)
+    over[1999:2002] = True
+    q, windows = taper_corrections(planned, planned + correction, over, ts)
+    # exactly the planned commands on the samples over the limit and within the hold
+    hold = int(round(TAPER_HOLD / ts))
+    np.testing.assert_array_equal(q[1999 - hold:2002 + hold], planned[1999 - hold:2002 + hold])
+    # untouched far away, and one window reported around the kink
+    np.testing.assert_array_equal(q[:1000], (planned + correction)[:1000])
+    np.testing.assert_array_equal(q[3200:], (planned + correction)[3200:])
+    assert len(windows) == 1 and windows[0][0] < 1999 and windows[0][1] > 2001
+    # the taper of a 1 um correction adds a jerk far below the machines' limits: measured 128
+    # mm/s^3 (the cubic B-spline's third derivative over 0.1 s), against 12,000 on the
+    # LinuxCNC sims and 200,000 on zhang2013
+    jerk = np.abs(np.diff(q[:, 0] - planned[:, 0], 3)).max() / ts**3
+    assert jerk < 200.0

@@ -25,7 +25,9 @@ from ..prediction.contour import ReferencePath, contour_errors
 from .precompensate import CompensationResult, compensate, predicted_actual
 
 #: Re-timing rounds before giving up.
-MAX_ROUNDS = 8
+MAX_ROUNDS = 16
+#: Round from which a window still over a limit is slowed by its whole ratio.
+LATE_ROUND = 4
 #: Each round slows down to this fraction of what the limit check asks for. Compensating the
 #: slowed reference again changes the corrections a little, so aiming just at the limit
 #: (the feed planner's 0.98) needed 4 compensation rounds on a 2-minute test path, 0.9
@@ -54,6 +56,10 @@ class LimitedCompensation:
         Compensations computed (1 = the first one kept the limits).
     first_check, check : LimitCheck
         The limit check of the first and of the final compensated commands.
+    uncompensated : tuple of (float, float)
+        Windows (s, time of ``reference``) where slowing down could not bring the corrections
+        within the limits, so the commands there taper to the uncompensated ones
+        (:func:`taper_corrections`).
     """
 
     result: CompensationResult
@@ -64,6 +70,7 @@ class LimitedCompensation:
     rounds: int
     first_check: LimitCheck
     check: LimitCheck
+    uncompensated: tuple[tuple[float, float], ...] = ()
 
     @property
     def added_time(self) -> float:
@@ -114,8 +121,11 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         # fall like 1/rho): later rounds slow it by at least the square root of its ratio. On
         # the 18-minute test path the cube root alone had not converged after 8 rounds; the
         # whole ratio converged in 6 but lengthened the program by 82 %, the square root in 7
-        # (the last 4 of them on a few windows, seconds each) by 69 %.
-        need = check.stretch if round_ == 1 else np.maximum(check.stretch, np.sqrt(check.ratio))
+        # (the last 4 of them on a few windows, seconds each) by 69 %. From the fourth round on,
+        # what is left is a few short windows (spliced in seconds): the whole ratio ends them
+        # sooner (LinuxCNC's boat example: still 191 % over after 8 rounds with the square root).
+        ratio = np.sqrt(check.ratio) if round_ < LATE_ROUND else check.ratio
+        need = check.stretch if round_ == 1 else np.maximum(check.stretch, ratio)
         stretch = np.where(need > 1.0 + CHECK_RTOL, need / RETIME_MARGIN, 1.0)
         retimed = retime(current, stretch, line=current_line)
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
@@ -129,8 +139,56 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         else:
             result = compensate(current, kinematics, models, **options)
             q = result.trajectory.q
-    raise MachineLimitError(f"the compensated commands still exceed the machine's limits after "
-                            f"{max_rounds} compensation round(s): {check.format()}")
+    # Slowing down no longer helps where a correction has a kink (its jerk does not fall when
+    # the motion slows): there the commands go back to the planned ones, which keep the limits.
+    tapered, windows = taper_corrections(current.q, q, check.ratio > 1.0 + CHECK_RTOL, ts)
+    final = check_limits(tapered, ts, limits, t0=t0)
+    if not final.ok:
+        raise MachineLimitError(f"the compensated commands still exceed the machine's limits "
+                                f"after {max_rounds} compensation round(s): {check.format()}")
+    result = _result_for(current, tapered, result, kinematics, models, options)
+    return LimitedCompensation(
+        result=result, reference=current, line=current_line,
+        slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
+        planned_index=to_original, rounds=max_rounds, first_check=first_check, check=final,
+        uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows))
+
+
+#: Half-width (s) around a sample over a limit where the correction is left out entirely, and
+#: width (s) of the C2 taper on each side.
+TAPER_HOLD = 0.05
+TAPER_WIDTH = 0.1
+
+
+def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np.ndarray,
+                      ts: float) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Commands whose correction ``q_compensated - q_planned`` is left out around the samples
+    ``over`` (within :data:`TAPER_HOLD`) and tapered in and out over :data:`TAPER_WIDTH`.
+
+    The weight is the indicator of the widened windows smoothed by four moving averages (a
+    cubic B-spline kernel: C2, so the taper adds bounded jerk, of the order of the correction
+    over ``TAPER_WIDTH`` cubed); it is exactly 0 on the samples over a limit. Returns the
+    commands and the left-out windows as sample index pairs.
+    """
+    n = over.size
+    hold = int(round(TAPER_HOLD / ts))
+    box = max(1, int(round(TAPER_WIDTH / ts / 4)))
+    # widen by the hold and by the kernel's half-support, so that the weight is 0 on ``over``
+    widen = hold + 2 * box
+    index = np.flatnonzero(over)
+    marks = np.zeros(n + 1)
+    np.add.at(marks, np.clip(index - widen, 0, n), 1.0)
+    np.add.at(marks, np.clip(index + widen + 1, 0, n), -1.0)
+    cut = np.cumsum(marks[:n]) > 0
+    weight = cut.astype(float)
+    kernel = np.ones(box) / box
+    for _ in range(4):
+        weight = np.convolve(np.pad(weight, (box, box), mode="edge"), kernel, mode="same")[box:-box]
+    weight = np.clip(weight, 0.0, 1.0)
+    weight[over] = 1.0
+    q = q_compensated - weight[:, None] * (q_compensated - q_planned)
+    edges = np.flatnonzero(np.diff(np.r_[0, cut.astype(np.int8), 0]))
+    return q, list(zip(edges[::2], edges[1::2] - 1))
 
 
 #: The splice margins (spec section 6 compensation is local in time):
