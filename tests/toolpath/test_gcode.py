@@ -15,8 +15,7 @@ from hypothesis import strategies as st
 from precontour.errors import InputError, PrecontourError, ProgramError
 from precontour.machine.machine_file import load_machine
 from precontour.toolpath import read_gcode, read_gcode_report, read_program, read_toolpath
-from precontour.toolpath.gcode import (ARC_CHORD_TOLERANCE, ARC_RADIUS_TOLERANCE,
-                                       linear_axes)
+from precontour.toolpath.gcode import ARC_CHORD_TOLERANCE, ARC_RADIUS_TOLERANCE
 
 DATA = Path(__file__).parent / "data"
 INCH = 25.4
@@ -308,17 +307,14 @@ def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, 
         assert not program.tcp_move[-1]
 
 
-def test_generic_linear_axes_agree_with_direct_kinematics(machine):
+def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
+    # the reader's TCP map is the kinematics' own linear_axes(P, rotary)
     rng = np.random.default_rng(5)
     P = rng.uniform(-100, 100, (50, 3))
     rotary = rng.uniform(-3, 3, (50, 2))
-    xyz = linear_axes(machine.kinematics, P, rotary)
+    xyz = machine.kinematics.linear_axes(P, rotary)
     tip, _ = machine.kinematics.forward(np.concatenate([xyz, rotary], axis=1))
     np.testing.assert_allclose(tip, P, rtol=0, atol=1e-10)
-
-    class ForwardOnly:
-        forward = staticmethod(machine.kinematics.forward)
-    np.testing.assert_allclose(linear_axes(ForwardOnly(), P, rotary), xyz, rtol=0, atol=1e-10)
 
 
 # --------------------------------------------------------------------------- errors

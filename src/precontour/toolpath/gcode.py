@@ -30,7 +30,6 @@ cycles, G95 -- is one :class:`~precontour.errors.ProgramError` naming the file, 
 
 from __future__ import annotations
 
-import inspect
 import math
 import re
 from collections import Counter
@@ -514,7 +513,7 @@ class _Reader:
         q = np.array(prog, dtype=float)
         q[:, 3:] = np.radians(q[:, 3:])
         if tcp.any():
-            q[tcp, :3] = linear_axes(self.kinematics, q[tcp, :3], q[tcp, 3:])
+            q[tcp, :3] = self.kinematics.linear_axes(q[tcp, :3], q[tcp, 3:])
         return q
 
     # ------------------------------------------------------------------ motion
@@ -747,46 +746,6 @@ def _ffill(values: np.ndarray, initial: float) -> np.ndarray:
     index = np.where(np.isnan(values), -1, np.arange(values.size))
     index = np.maximum.accumulate(index)
     return np.where(index >= 0, values[np.maximum(index, 0)], initial)
-
-
-def linear_axes(kinematics, P: np.ndarray, rotary: np.ndarray) -> np.ndarray:
-    """Linear axes X, Y, Z (mm, shape (N, 3)) that put the tool tip at ``P`` (N, 3) with the
-    rotary axes at ``rotary`` (N, 2) rad.
-
-    At fixed rotary angles the direct kinematics is affine in the linear axes,
-    P = M(rotary) [X, Y, Z] + b(rotary), so four evaluations of ``forward`` give M and b and
-    one batched 3x3 solve the axes; no machine-specific inverse is needed. A kinematics that
-    has its own ``linear_axes(P, rotary)`` (or ``linear_axes(P, A, C)``) is asked directly
-    (the same numbers, about four times faster).
-    """
-    P = np.asarray(P, dtype=float).reshape(-1, 3)
-    rotary = np.asarray(rotary, dtype=float).reshape(-1, 2)
-    own = getattr(kinematics, "linear_axes", None)
-    if own is not None:
-        n_args = len(inspect.signature(own).parameters)
-        if n_args == 2:
-            return np.asarray(own(P, rotary), dtype=float).reshape(-1, 3)
-        if n_args == 3:
-            return np.asarray(own(P, rotary[:, 0], rotary[:, 1]), dtype=float).reshape(-1, 3)
-    return _linear_axes_from_forward(kinematics, P, rotary)
-
-
-def _linear_axes_from_forward(kinematics, P, rotary):
-    n = P.shape[0]
-    q = np.zeros((4, n, 5))
-    q[:, :, 3:] = rotary
-    for i in range(3):
-        q[i + 1, :, i] = 1.0
-    tips, _ = kinematics.forward(q)
-    b = tips[0]
-    m0, m1, m2 = tips[1] - b, tips[2] - b, tips[3] - b
-    # Cramer's rule with cross products: x_i = (m_j x m_k) . r / det, vectorized over samples
-    c12, c20, c01 = np.cross(m1, m2), np.cross(m2, m0), np.cross(m0, m1)
-    det = np.einsum("ij,ij->i", m0, c12)
-    r = P - b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.stack([np.einsum("ij,ij->i", c12, r), np.einsum("ij,ij->i", c20, r),
-                         np.einsum("ij,ij->i", c01, r)], axis=-1) / det[:, None]
 
 
 def _word_at(code: str, pos: int) -> str:

@@ -261,9 +261,8 @@ class _Context:
         cut = u_end < 1.0
         tcp = self.tcp[move]
         if (cut & tcp).any():
-            from ..toolpath.gcode import linear_axes
             k = cut & tcp
-            node_q[k, :3] = linear_axes(self.kinematics, node_tip[k], node_q[k, 3:])
+            node_q[k, :3] = self.kinematics.linear_axes(node_tip[k], node_q[k, 3:])
         if (cut & ~tcp).any():
             k = cut & ~tcp
             node_tip[k] = self.kinematics.forward(node_q[k])[0]
@@ -338,10 +337,9 @@ class _Context:
         piece = np.searchsorted(node_t[1:-1], tau, side="right")
         tcp = piece_tcp[piece]
         if tcp.any():
-            from ..toolpath.gcode import linear_axes
             tip = np.stack([np.interp(tau[tcp], node_t, node_tip[:, i]) for i in range(3)],
                            axis=1)
-            q[:3, tcp] = linear_axes(self.kinematics, tip, q[3:, tcp].T).T
+            q[:3, tcp] = self.kinematics.linear_axes(tip, q[3:, tcp].T).T
         q[:, -1] = node_q[-1]
         return q, piece
 
