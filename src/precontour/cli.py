@@ -30,7 +30,7 @@ from .files import (Terminated, check_outputs, check_report_folder, input_files,
                     sigterm_as_exception)
 from .trajectory.feedplan import DEFAULT_FEED
 from .machine.machine_file import load_machine
-from .simulation.virtual_machine import simulate
+from .simulation.virtual_machine import realistic_actual, simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
 from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference, read_trajectory,
                      trajectory_columns, write_columns, write_text)
@@ -537,7 +537,7 @@ def run_compensate(args: argparse.Namespace) -> int:
             print(f"  no learning: {traj.n_samples} samples are more than "
                   f"{AT_ONCE_SAMPLES} (compensated in pieces)", file=sys.stderr)
         else:
-            machine_actual = virtual_machine_actual(traj.t, machine, args.controller)
+            machine_actual = realistic_actual(traj.t, machine, args.controller)
 
     def learning_progress(label, summary):
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
@@ -650,16 +650,6 @@ def run_compare(args: argparse.Namespace) -> int:
     print(f"wrote {len(result.files)} files to {result.out_dir} in "
           f"{result.timings['total']:.1f} s; open {result.files[-1]}")
     return 0
-
-
-def virtual_machine_actual(t: np.ndarray, machine, controller: str):
-    """The realistic virtual machine (discrete control at the servo period, friction, friction
-    feed-forward) as the commands -> actual axis positions model that compensation learns
-    against."""
-    def actual(q: np.ndarray) -> np.ndarray:
-        return simulate(t, q, machine, controller, mode="discrete", friction=True,
-                        ff_friction=True).q_act
-    return actual
 
 
 def run_identify(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ from .compensation.within_limits import LimitedCompensation, compensate_within_l
 from .errors import InputError, MachineLimitError, notice
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors, ReferencePath, contour_errors
-from .simulation.virtual_machine import simulate
+from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
 from .toolpath import EXTENSIONS, read_program, read_toolpath, toolpath_format
@@ -286,9 +286,8 @@ def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
 def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory,
                             q: np.ndarray) -> ContourErrors:
     machine_obj = load_machine(machine)
-    sim = simulate(reference.t, q, machine_obj, controller, mode="discrete", friction=True,
-                   ff_friction=True)
-    return contour_errors(ReferencePath.from_trajectory(reference), sim.q_act,
+    q_act = realistic_actual(reference.t, machine_obj, controller)(q)
+    return contour_errors(ReferencePath.from_trajectory(reference), q_act,
                           machine_obj.kinematics)
 
 

@@ -28,7 +28,7 @@ from ..machine.drives import LinearErrorModel
 from ..errors import InputError, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
-from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
+from ..simulation.virtual_machine import REALISTIC, SimulationResult, simulate_trajectory
 from ..machine.controllers import closed_loop_bandwidth
 from ..prediction.tracking import AxisPrediction, predict_tracking
 from ..trajectory.sampled import Trajectory
@@ -37,7 +37,7 @@ from .progress import Progress, StepCounter
 
 #: The two virtual machines every command runs on: name -> simulate() options.
 MACHINE_MODELS: dict[str, dict] = {
-    "realistic": dict(mode="discrete", friction=True, ff_friction=True),
+    "realistic": REALISTIC,
     "exact": dict(mode="continuous", friction=False, ff_friction=False),
 }
 #: Trajectory kinds, in table order.

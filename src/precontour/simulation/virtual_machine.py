@@ -39,10 +39,14 @@ from ..errors import InputError, UnsupportedControllerError, plain
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
-__all__ = ["LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES", "SimulationResult",
+__all__ = ["REALISTIC", "realistic_actual", "LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES", "SimulationResult",
            "StackedFriction", "simulate", "simulate_trajectory"]
 
 MODES: tuple[str, ...] = ("discrete", "continuous")
+
+#: The realistic virtual machine: the controller at the servo period with a zero-order hold,
+#: friction with stick-slip, and feed-forward friction compensation (:func:`simulate` options).
+REALISTIC: dict = dict(mode="discrete", friction=True, ff_friction=True)
 
 #: Default number of integration sub-steps per servo period, per mode (see :func:`simulate`).
 DEFAULT_SUBSTEPS: dict[str, int] = {"discrete": 4, "continuous": 2}
@@ -299,6 +303,14 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
                                       bool(ff_friction), substeps)
     return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
                             controller=controller.name, settings=settings)
+
+
+def realistic_actual(t: np.ndarray, machine: Machine, controller: Controller | str):
+    """The realistic virtual machine (:data:`REALISTIC`) at the times ``t`` as a model
+    ``actual(q) -> q_act`` of commands (N, 5) to actual axis positions (N, 5)."""
+    def actual(q: np.ndarray) -> np.ndarray:
+        return simulate(t, q, machine, controller, **REALISTIC).q_act
+    return actual
 
 
 def simulate_trajectory(traj: Trajectory, machine: Machine, controller: Controller | str,
