@@ -40,7 +40,10 @@ def simulate_closed_loop(t: np.ndarray, q: np.ndarray, controller, mode: str, ts
     out = np.empty_like(q)
     for i, axis in enumerate(controller.axes):
         method = "bilinear" if mode == "discrete" else "foh"
-        num_d, den_d, _ = signal.cont2discrete((np.asarray(axis.num), np.asarray(axis.den)),
-                                               step, method=method)
+        # leading zeros of x/X's numerator (a machine file may write them: its degree is below
+        # the denominator's) would make scipy warn of badly conditioned coefficients
+        num = np.trim_zeros(np.asarray(axis.num, dtype=float), "f")
+        num_d, den_d, _ = signal.cont2discrete((num, np.asarray(axis.den)), step,
+                                               method=method)
         out[:, i] = signal.lfilter(np.ravel(num_d), den_d, drive[:, i])[pick]
     return out + q0
