@@ -543,14 +543,15 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    learning = {} if machine_actual is None else dict(
+    learning_options = {} if machine_actual is None else dict(
         machine_actual=machine_actual, learning_passes=args.learn,
         learning_progress=learning_progress)
     # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
         result = compensate_program(traj, machine.kinematics, models, method=args.method,
                                     iterations=args.iterations, tol_linear=args.tol_linear,
-                                    tol_rotary=args.tol_rotary, progress=progress, **learning)
+                                    tol_rotary=args.tol_rotary, progress=progress,
+                                    **learning_options)
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
