@@ -260,6 +260,11 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
                          help="largest number of contour compensation passes (default 1; the "
                               "tracking baseline is always the paper's single pass)")
+    compare.add_argument("--model-error", type=_nonnegative_float, default=20.0, metavar="PCT",
+                         help="also run sliding mode and P-PI on plants whose J and B are PCT "
+                              "%% above and below the model both controllers use, as on a real "
+                              "machine (the paper's Fig. 11 ranking under model error; default "
+                              "20, 0 leaves it out)")
     compare.set_defaults(run=run_compare)
 
     ident = commands.add_parser(
@@ -638,6 +643,8 @@ def run_compare(args: argparse.Namespace) -> int:
     try:
         result = compare_run(args.out, builtin=args.builtin, trajectory=args.trajectory,
                              machine=args.machine, iterations=args.iterations,
+                             model_errors=(() if args.model_error == 0 else
+                                           (args.model_error / 100, -args.model_error / 100)),
                              progress=progress)
     finally:
         progress.close()

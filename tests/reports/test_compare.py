@@ -84,8 +84,8 @@ def test_writes_every_promised_file(cli_run):
     assert sorted(p.name for p in result.out_dir.iterdir()) == expected
     assert sorted(p.name for p in result.files) == expected
     assert result.files[-1].name == "index.html"
-    assert {"fig11", "fig12:pid-high", "fig12:pid-low", "fig13:pid-high", "fig13:pid-low",
-            "fig14", "fig15", "fig16"} <= set(names)
+    assert {"fig11", "fig11:model-error", "fig12:pid-high", "fig12:pid-low", "fig13:pid-high",
+            "fig13:pid-low", "fig14", "fig15", "fig16", "model-error.csv"} <= set(names)
     for path in result.files:
         if path.suffix == ".png":
             data = path.read_bytes()
@@ -108,6 +108,11 @@ def test_csv_files_have_their_headers_and_rows(cli_run):
     peaks = _csv(out / "command_peaks.csv")
     assert tuple(peaks[0]) == compare_report.PEAK_COLUMNS
     assert len(peaks) == 3 * 2 * 3 * 5
+    model_error = _csv(out / "model_error.csv")
+    assert tuple(model_error[0]) == compare_report.MODEL_ERROR_COLUMNS
+    assert [(r["model_error_pct"], r["controller"], r["compensation"]) for r in model_error] == [
+        (pct, c, k) for pct in ("0.0", "20.0", "-20.0")
+        for c, k in (("smc", "none"), ("p-pi-high", "none"), ("p-pi-high", "contour"))]
     claims = _csv(out / "claims.csv")
     assert [r["key"] for r in claims] == [c.key for c in result.claims]
     assert [r["verdict"] for r in claims] == [c.verdict for c in result.claims]
@@ -123,7 +128,7 @@ def test_markdown_and_html(cli_run):
     assert md.count("| controller | compensation | passes |") == 1
     page = (result.out_dir / "index.html").read_text(encoding="utf-8")
     pngs = [p for p in result.files if p.suffix == ".png"]
-    assert page.count('src="data:image/png;base64,') == len(pngs) == 8
+    assert page.count('src="data:image/png;base64,') == len(pngs) == 9
     for png in pngs:
         assert base64.b64encode(png.read_bytes()).decode() in page
     assert "<img src=\"http" not in page and ".png\"" not in page
@@ -173,6 +178,66 @@ def test_runs_are_what_an_independent_run_measures(cli_run, machine):
     # the uncompensated run drives the reference commands themselves
     np.testing.assert_array_equal(result.run("smc").commands.q, traj.q)
     assert result.run("smc").simulation.controller == "smc"
+
+
+def test_model_error_runs_are_what_an_independent_run_measures(cli_run, machine):
+    # Claim a2: the same commands as on the exact plant, on a plant whose J and B are scaled;
+    # re-run each cell by hand and compare with the table written.
+    result, _, _ = cli_run
+    traj = result.trajectory
+    reference = ReferencePath.from_trajectory(traj)
+    rows = {(float(r["model_error_pct"]), r["controller"], r["compensation"]): r
+            for r in _csv(result.out_dir / "model_error.csv")}
+    assert result.model_errors == compare.DEFAULT_MODEL_ERRORS
+    for (name, kind, error), run in result.model_error_runs.items():
+        np.testing.assert_array_equal(run.commands.q, result.run(name, kind).commands.q)
+        sim = simulate(traj.t, run.commands.q, machine, name, mode="discrete", friction=True,
+                       ff_friction=True, inertia_scale=1 + error, damping_scale=1 + error)
+        np.testing.assert_array_equal(sim.q_act, run.simulation.q_act)
+        summary = contour_errors(reference, sim.q_act, machine.kinematics).summary()
+        row = rows[(100 * error, name, kind)]
+        assert float(row["inertia_scale"]) == float(row["damping_scale"]) == 1 + error
+        for key in ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad"):
+            assert float(row[key]) == pytest.approx(summary[key], rel=1e-12)
+    # a model error changes what the plant does: sliding mode's feed-forward no longer matches
+    exact = result.run("smc").contour.summary()["tip_mean_um"]
+    for error in result.model_errors:
+        off = result.model_error_runs[("smc", "none", error)].contour.summary()["tip_mean_um"]
+        assert off > 2 * exact
+
+
+def test_printed_claim_a2_matches_the_model_error_runs(cli_run):
+    result, out, _ = cli_run
+    block = _claim_block(out, "a2:p-pi-high")
+    pattern = re.compile(rf"^J, B x([0-9.]+): (tip max|tip mean|orientation max|orientation "
+                         rf"mean): sliding mode {NUMBER} (um|mrad), P-PI\+contour {NUMBER} "
+                         rf"(um|mrad): P-PI\+contour {NUMBER} % (lower|higher)$")
+    metrics = {"tip max": "tip_max_um", "tip mean": "tip_mean_um",
+               "orientation max": "ori_max_mrad", "orientation mean": "ori_mean_mrad"}
+    wins = []
+    for line in block[2:]:
+        m = pattern.match(line)
+        assert m, line
+        scale, label, a, _, b, _, pct, word = m.groups()
+        error = next(e for e in result.model_errors if f"{1 + e:g}" == scale)
+        sliding = result.model_error_runs[("smc", "none", error)].contour.summary()
+        ppi = result.model_error_runs[("p-pi-high", "contour", error)].contour.summary()
+        key = metrics[label]
+        assert float(a) == pytest.approx(sliding[key], rel=6e-4)
+        assert float(b) == pytest.approx(ppi[key], rel=6e-4)
+        assert word == ("lower" if ppi[key] < sliding[key] else "higher")
+        wins.append(ppi[key] < sliding[key])
+    assert len(wins) == 4 * len(result.model_errors)
+    expected = "holds" if all(wins) else "does not hold" if not any(wins) else "partly holds"
+    assert block[1] == f"-> {expected.upper()}"
+
+
+def test_model_errors_can_be_left_out():
+    names = compare.report_file_names("smc", "p-pi-high", ("pid-high",), ())
+    assert "model-error.csv" not in names and "fig11:model-error" not in names
+    assert "model-error.csv" in compare.report_file_names("smc", "p-pi-high", ())
+    # without sliding mode there is nothing to rank under model error
+    assert "model-error.csv" not in compare.report_file_names(None, "p-pi-high", ())
 
 
 def test_tracking_baseline_adds_the_predicted_tracking_errors(cli_run, machine):
@@ -435,7 +500,8 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path, capsys, make_args, match)
 
 
 def test_cli_usage_errors_exit_2(tmp_path, paper_csv):
-    for args in (["--builtin", "paper", str(paper_csv)], ["--iterations", "0"]):
+    for args in (["--builtin", "paper", str(paper_csv)], ["--iterations", "0"],
+                 ["--model-error", "-5"]):
         with pytest.raises(SystemExit) as exit_info:
             cli.main(["compare", *args, "--out", str(tmp_path / "o")])
         assert exit_info.value.code == 2
@@ -450,6 +516,10 @@ def test_cli_usage_errors_exit_2(tmp_path, paper_csv):
     (dict(pids=("pid-medium",)), MachineFileError, "unknown controller 'pid-medium'"),
     (dict(builtin="fan", trajectory="x.csv"), InputError,
      "give a built-in path or a trajectory, not both"),
+    (dict(model_errors=(0.2, -1.0)), InputError,
+     r"field 'model_errors': model error must be a nonzero fraction above -1"),
+    (dict(model_errors=(0.0,)), InputError, "model error must be a nonzero fraction"),
+    (dict(model_errors=(0.1, 0.1)), InputError, "a model error is given twice"),
 ])
 def test_run_compare_input_errors(tmp_path, kwargs, error, match):
     with pytest.raises(error, match=match):

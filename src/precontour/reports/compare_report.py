@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from .compare import (report_file_names, COMPENSATIONS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
+from .compare import (report_file_names, COMPENSATIONS, DEFAULT_MODEL_ERRORS, _g, DERIVATIVES, MACHINE_OPTIONS, METRICS, NEARLY_UNCHANGED_PCT,
                       SPECTRUM_CUTOFF_HZ, SPECTRUM_SIGNALS, WELCH_SEGMENT, Spectrum,
                       CompareResult, command_derivatives, compute_compare)
 from ..prediction.contour import ContourErrors
@@ -48,6 +48,9 @@ SPECTRUM_COLUMNS: tuple[str, ...] = ("controller", "signal", "unit", "cutoff_hz"
 PEAK_COLUMNS: tuple[str, ...] = ("controller", "compensation", "axis", "quantity", "unit",
                                  "reference", "compensated", "change_pct")
 CLAIM_COLUMNS: tuple[str, ...] = ("key", "verdict", "question", "numbers")
+MODEL_ERROR_COLUMNS: tuple[str, ...] = (
+    ("model_error_pct", "inertia_scale", "damping_scale", "controller", "compensation")
+    + tuple(m for m, _, _ in METRICS))
 
 
 # --------------------------------------------------------------------------------------------
@@ -291,7 +294,7 @@ def compare_file_names(result: "CompareResult") -> dict[str, str]:
     """Names of the files the report writes, keyed by role (figures ``fig11`` ... ``fig16``,
     possibly one per controller as ``fig12:<name>``; tables; ``compare.md``; ``index.html``
     last)."""
-    return report_file_names(result.sliding, result.ppi, result.pids)
+    return report_file_names(result.sliding, result.ppi, result.pids, result.model_errors)
 
 
 def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
@@ -313,6 +316,20 @@ def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
                     "pre-compensation (like the paper's Fig. 11).",
                     figure_png(plot_contour_comparison(
                         t, curves, title=f"contour errors, {where}: sliding mode vs P-PI"))))
+        for error in result.model_errors[:1]:
+            def run(name, kind):
+                return result.model_error_runs[(name, kind, error)].contour
+            curves = ([(f"sliding mode ({result.sliding})", run(result.sliding, "none"),
+                        COLORS["sliding"]),
+                       (f"P-PI ({result.ppi})", run(result.ppi, "none"), COLORS["none"]),
+                       ("P-PI + contour pre-comp.", run(result.ppi, "contour"),
+                        COLORS["contour"])])
+            out.append(("fig11:model-error", "Fig. 11 again on a plant whose J and B are "
+                        f"{100 * error:+g} % off the model both controllers use (claim a2; "
+                        "every model error's numbers are in the model-error table).",
+                        figure_png(plot_contour_comparison(
+                            t, curves, title=f"contour errors, {where}, plant J, B "
+                                             f"x{1 + error:g}: sliding mode vs P-PI"))))
     for name in result.pids:
         out.append((f"fig12:{name}", f"{name}: contour errors with tracking-error vs "
                     "contour-error pre-compensation (like the paper's Fig. 12).",
@@ -384,6 +401,10 @@ def _markdown(result: "CompareResult") -> str:
               markdown_rows(result.spectrum_rows, SPECTRUM_COLUMNS), "",
               "## Peak velocity, acceleration and jerk of the axis commands", "",
               markdown_rows(result.peak_rows, PEAK_COLUMNS), ""]
+    if result.model_error_rows:
+        parts += ["## Sliding mode and P-PI when the plant's J and B are off the model "
+                  "(claim a2; um, mrad)", "",
+                  markdown_rows(result.model_error_rows, MODEL_ERROR_COLUMNS), ""]
     return "\n".join(parts)
 
 
@@ -421,6 +442,12 @@ def _html(result: "CompareResult", figures) -> str:
              _html_rows(result.spectrum_rows, SPECTRUM_COLUMNS),
              "<h2>Peak velocity, acceleration and jerk of the axis commands</h2>",
              _html_rows(result.peak_rows, PEAK_COLUMNS)]
+    if result.model_error_rows:
+        body += ["<h2>Sliding mode and P-PI when the plant's J and B are off the model</h2>",
+                 "<p>Claim a2: both controllers use the nominal model (sliding mode feeds it "
+                 "forward, the pre-compensation predicts with it); the plant's J and B are "
+                 "scaled. Tool tip in um, orientation in mrad.</p>",
+                 _html_rows(result.model_error_rows, MODEL_ERROR_COLUMNS)]
     timing = result.timings or {}
     if "compute" in timing:
         body.append(f"<p>Computed in {timing['compute']:.1f} s.</p>")
@@ -449,6 +476,8 @@ def write_compare_report(result: "CompareResult") -> list[Path]:
         write_rows_csv(result.spectrum_rows, SPECTRUM_COLUMNS, out / names["spectra.csv"]),
         write_rows_csv(result.peak_rows, PEAK_COLUMNS, out / names["peaks.csv"]),
         write_rows_csv(claim_rows(result), CLAIM_COLUMNS, out / names["claims.csv"]),
+        *([write_rows_csv(result.model_error_rows, MODEL_ERROR_COLUMNS,
+                          out / names["model-error.csv"])] if "model-error.csv" in names else []),
         _write(out / names["compare.md"], _markdown(result).encode("utf-8")),
         _write(out / names["index.html"], _html(result, figures).encode("utf-8")),
     ]
@@ -460,6 +489,7 @@ def run_compare(out_dir: str | Path, *, builtin: str | None = None,
                 machine: "str | Path | Machine" = "zhang2013", iterations: int = 1,
                 sliding: str | None = "smc", ppi: str | None = "p-pi-high",
                 pids: Sequence[str] = ("pid-high", "pid-low"),
+                model_errors: Sequence[float] = DEFAULT_MODEL_ERRORS,
                 progress: "Progress | None" = None) -> "CompareResult":
     """Compare controllers and compensation methods on the realistic virtual machine and write
     the report folder. Parameters are those of
@@ -467,7 +497,8 @@ def run_compare(out_dir: str | Path, *, builtin: str | None = None,
     with the files written (``index.html`` last)."""
     result, step = compute_compare(out_dir, builtin=builtin, trajectory=trajectory,
                                    machine=machine, iterations=iterations, sliding=sliding,
-                                   ppi=ppi, pids=pids, progress=progress)
+                                   ppi=ppi, pids=pids, model_errors=model_errors,
+                                   progress=progress)
     computed = time.perf_counter()
     step("writing the report")
     files = write_compare_report(result)
