@@ -163,6 +163,13 @@ class RunResult:
                          "could not keep the limits (the planned commands there): "
                          + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in left_out[:10])
                          + (" ..." if len(left_out) > 10 else ""))
+        kinks = self.limited.kinks
+        if kinks:
+            lines.append(f"kinks of the corrections smoothed in {len(kinks)} window(s) (corners at "
+                         "stops: the commands there blend into tracking-error "
+                         "pre-compensation): " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
+                                                          for a, b in kinks[:5])
+                         + (" ..." if len(kinks) > 5 else ""))
         lines.append(f"blocks written {self.program.n_blocks} (tolerance "
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")

@@ -8,6 +8,14 @@ a margin) and compensated again, until every axis keeps every limit; after the f
 round only the stretches around the slowed windows are compensated again and spliced into
 the commands (compensation is local in time). The slowed windows are reported in the time of
 the original reference.
+
+Before any slowing, kinks of the corrections are smoothed: where the closest reference point
+of the predicted actual tool tip jumps from one leg of a corner to the other (a stop between
+two blocks that meet at an angle, e.g. a rapid's end and the next feed move), the contour error
+vector turns abruptly, and so does the tip correction. Slowing the motion does not remove such
+a jump (its jerk falls like 1/rho, not 1/rho^3). There the commands blend into axis
+tracking-error pre-compensation (each command plus its own predicted tracking error; spec
+section 7's baseline), which is continuous and cancels the same lag to second order.
 """
 
 from __future__ import annotations
@@ -33,6 +41,12 @@ LATE_ROUND = 4
 #: (the feed planner's 0.98) needed 4 compensation rounds on a 2-minute test path, 0.9
 #: needed 3; each round is a compensation, the costliest step of ``run``.
 RETIME_MARGIN = 0.9
+#: A first check asking for more time stretch than this marks a kink of the corrections, not
+#: their dynamics. The corrections' own derivatives add up to 91 % to the peak jerk on the
+#: built-in paths (stretch 1.91^(1/3) = 1.24); a jump of the tip correction between two
+#: samples, as at a corner's closest-point switch, asks for 3-8 (LinuxCNC's impeller example:
+#: 7.8, a 2.7 um jump at a rapid's end).
+KINK_STRETCH = 1.5
 
 
 @dataclass(frozen=True)
@@ -60,6 +74,9 @@ class LimitedCompensation:
         Windows (s, time of ``reference``) where slowing down could not bring the corrections
         within the limits, so the commands there taper to the uncompensated ones
         (:func:`taper_corrections`).
+    kinks : tuple of (float, float)
+        Windows (s, time of the original reference) where a kink of the corrections was
+        smoothed by blending into axis tracking-error pre-compensation (:data:`KINK_STRETCH`).
     """
 
     result: CompensationResult
@@ -71,6 +88,7 @@ class LimitedCompensation:
     first_check: LimitCheck
     check: LimitCheck
     uncompensated: tuple[tuple[float, float], ...] = ()
+    kinks: tuple[tuple[float, float], ...] = ()
 
     @property
     def added_time(self) -> float:
@@ -101,16 +119,24 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         progress(1, f"compensate ({current.n_samples} samples)")
     result = compensate(current, kinematics, models, **options)
     q = result.trajectory.q
+    kinks = []
     for round_ in range(1, max_rounds + 1):
         check = check_limits(q, ts, limits, t0=t0)
         first_check = first_check or check
+        if not check.ok and options.get("method", "contour") == "contour":
+            q, windows = smooth_kinks(current, q, check, models, options)
+            if windows:
+                kinks += [(t0 + to_original[a] * ts, t0 + to_original[b] * ts)
+                          for a, b in windows]
+                check = check_limits(q, ts, limits, t0=t0)
         if check.ok:
             if round_ > 1:
                 result = _result_for(current, q, result, kinematics, models, options)
             return LimitedCompensation(
                 result=result, reference=current, line=current_line,
                 slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
-                planned_index=to_original, rounds=round_, first_check=first_check, check=check)
+                planned_index=to_original, rounds=round_, first_check=first_check, check=check,
+                kinks=_merged(kinks))
         if not check.position_ok:
             raise MachineLimitError("the compensated commands leave an axis's travel, which "
                                     "slowing down cannot cure: " + check.format())
@@ -151,7 +177,35 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         result=result, reference=current, line=current_line,
         slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
         planned_index=to_original, rounds=max_rounds, first_check=first_check, check=final,
-        uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows))
+        uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows),
+        kinks=_merged(kinks))
+
+
+def _merged(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
+    """Time windows sorted, overlapping ones merged (a kink smoothed again in a later round
+    overlaps its first window)."""
+    out: list[list[float]] = []
+    for a, b in sorted(windows):
+        if out and a <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return tuple((float(a), float(b)) for a, b in out)
+
+
+def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models, options
+                 ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Commands ``q`` (compensated on ``reference``) blended into axis tracking-error
+    pre-compensation around the samples whose limit check asks for more than
+    :data:`KINK_STRETCH` (with the weights of :func:`taper_corrections`); returns them and the
+    blended windows as sample index pairs (none: ``q`` itself)."""
+    kinks = check.stretch > KINK_STRETCH
+    if not kinks.any():
+        return q, []
+    tolerances = {key: options[key] for key in ("tol_linear", "tol_rotary") if key in options}
+    tracking = 2.0 * reference.q - predicted_actual(reference.t, reference.q, models,
+                                                    **tolerances)
+    return taper_corrections(tracking, q, kinks, reference.ts)
 
 
 #: Half-width (s) around a sample over a limit where the correction is left out entirely, and
