@@ -20,7 +20,7 @@ the log:
   hidden plant itself (the best learning can do).
 
 Usage: python scripts/measure_identification.py [--controller pid-high] [--quantize] [--learn 4]
-       [--paths circle,cone,fan,paper]
+       [--friction-mismatch] [--paths circle,cone,fan,paper]
 """
 
 from __future__ import annotations
@@ -46,9 +46,20 @@ B_FACTORS = (0.75, 1.3, 0.7, 1.25, 1.3)
 PATHS = ("circle", "cone", "fan", "paper")
 
 
-def hidden_plant(machine):
+#: ``--friction-mismatch``: the plant's friction levels and Stribeck speeds differ from the
+#: base machine's too; identify takes the Stribeck speeds W1, W2 from the base machine, so the
+#: identified friction law then has the wrong shape.
+FRICTION_MISMATCH = {"Ts": 1.2, "Tc": 0.85, "W1": 1.5, "W2": 1.5}
+
+
+def hidden_plant(machine, friction_mismatch: bool = False):
     drives = tuple(dataclasses.replace(d, J=d.J * fj, B=d.B * fb)
                    for d, fj, fb in zip(machine.drives, J_FACTORS, B_FACTORS))
+    if friction_mismatch:
+        drives = tuple(dataclasses.replace(d, friction=dataclasses.replace(d.friction, **{
+            f"{key}_{side}": getattr(d.friction, f"{key}_{side}") * factor
+            for key, factor in FRICTION_MISMATCH.items() for side in ("pos", "neg")}))
+            for d in drives)
     return dataclasses.replace(machine, drives=drives)
 
 
@@ -71,9 +82,12 @@ def main() -> None:
                         help="learning passes against the virtual machines")
     parser.add_argument("--paths", default=",".join(PATHS),
                         help=f"built-in paths, comma-separated (default {','.join(PATHS)})")
+    parser.add_argument("--friction-mismatch", action="store_true",
+                        help="the plant's friction differs from the base machine's: static "
+                             "levels x1.2, Coulomb x0.85, Stribeck speeds x1.5")
     args = parser.parse_args()
     base = load_machine("zhang2013")
-    plant = hidden_plant(base)
+    plant = hidden_plant(base, args.friction_mismatch)
     res = np.array([1e-4] * 3 + [1e-6] * 2) if args.quantize else None
     run = dict(REALISTIC, encoder_resolution=res)
 
@@ -92,7 +106,8 @@ def main() -> None:
     t_id = time.perf_counter() - start - t_sim
     identified = result.machine
     drives_controller = identified.controller(result.name).base
-    print(f"controller {args.controller}, quantized {args.quantize}: excitation {exc.duration:.1f} s "
+    print(f"controller {args.controller}, quantized {args.quantize}, friction mismatch "
+          f"{args.friction_mismatch}: excitation {exc.duration:.1f} s "
           f"({exc.n_samples} samples), simulated in {t_sim:.1f} s, identified in {t_id:.1f} s; "
           f"tf base controller {drives_controller}")
     for axis, fit in result.axes.items():
