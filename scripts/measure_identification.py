@@ -16,8 +16,9 @@ the log:
   contour errors by one linear pass with each linear model, and by the identified tf model's
   pass followed by learning (``--learn`` passes) against the realistic virtual machine of the
   identified drives with the base controller (what ``precontour compensate --machine IDENT.toml
-  --controller identified --learn N`` does), against the nominal drives, and against the
-  hidden plant itself (the best learning can do).
+  --controller identified --learn N`` does), against the nominal drives, against the
+  hidden plant itself (the best learning can do), and against the identified tf loops
+  themselves (no friction: what compensate does when the log had no currents).
 
 Usage: python scripts/measure_identification.py [--controller pid-high] [--quantize] [--learn 4]
        [--friction-mismatch] [--paths circle,cone,fan,paper]
@@ -105,7 +106,7 @@ def main() -> None:
     result = identify(log, base, data, base_controller=args.controller)
     t_id = time.perf_counter() - start - t_sim
     identified = result.machine
-    drives_controller = identified.controller(result.name).base
+    drives_controller = identified.controller(result.name).base or args.controller
     print(f"controller {args.controller}, quantized {args.quantize}, friction mismatch "
           f"{args.friction_mismatch}: excitation {exc.duration:.1f} s "
           f"({exc.n_samples} samples), simulated in {t_sim:.1f} s, identified in {t_id:.1f} s; "
@@ -124,7 +125,8 @@ def main() -> None:
               "nominal": base.controller(args.controller).error_models(base.drives),
               "plant": base.controller(args.controller).error_models(plant.drives)}
     # Learning models: the realistic virtual machine with the drives of each machine.
-    learning = {"identified": identified, "nominal": base, "plant": plant}
+    learning = {"identified": identified, "nominal": base, "plant": plant,
+                "identified tf": identified}
     print("\nprediction error, max|e_pred - e| in % of max|e| per axis X Y Z A C")
     comp_rows = []
     for name in args.paths.split(","):
@@ -150,8 +152,10 @@ def main() -> None:
         cases += [(f"identified + learning on {label}", models["identified"], machine)
                   for label, machine in learning.items()]
         for label, mods, learn_machine in cases:
+            # "identified tf": the tf loops themselves (no drives, no friction).
+            learn_controller = result.name if label.endswith(" tf") else drives_controller
             options = {} if learn_machine is None else dict(
-                machine_actual=realistic_actual(traj.t, learn_machine, drives_controller),
+                machine_actual=realistic_actual(traj.t, learn_machine, learn_controller),
                 learning_passes=args.learn)
             comp = compensate(traj, base.kinematics, mods, reference=reference, min_passes=1,
                               **options)

@@ -549,9 +549,8 @@ def run_compensate(args: argparse.Namespace) -> int:
         else:
             if is_closed_loop(learn_controller):
                 print(f"  learning against controller {learn_controller.name!r}, a transfer "
-                      "function without drives or friction: give --learn-controller NAME (the "
-                      "controller the drives run) to learn where friction matters",
-                      file=sys.stderr)
+                      "function without drives or friction (--learn-controller NAME: the "
+                      "controller the drives run, on this file's drives)", file=sys.stderr)
             machine_actual = realistic_actual(traj.t, machine, learn_controller)
 
     def learning_progress(label, summary):

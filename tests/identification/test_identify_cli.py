@@ -32,8 +32,10 @@ def test_excite_record_identify_use(tmp_path, capsys):
     assert "axis X: the command never moves in the log" in printed
     assert (report / "index.html").exists() and (report / "bode.png").exists()
     assert (report / "residuals_Y.png").exists()
-    # The tf loop names the controller the drives run, for learning (compensate --learn).
-    assert load_machine(out).controller("mine").base == "pid-low"
+    # No currents: the drives are the base machine's, so the tf loop names no controller for
+    # learning against them (compensate --learn then runs the tf loops), and says so.
+    assert load_machine(out).controller("mine").base is None
+    assert "no base controller named for learning" in printed
     # The identified machine works with the other commands.
     pred = tmp_path / "pred.csv"
     assert main(["predict", str(exc), "--machine", str(out), "--controller", "mine",
