@@ -41,7 +41,9 @@ tf     den     closed-loop x/X denominator in s, highest power first (list); the
 tf     base    optional, at the controller's level: the name of the controller of the
                same machine file that the drives run (the one the loop was identified
                with; not itself a ``tf``), for what needs drives and friction: learning
-               against the virtual machine (``precontour compensate --learn``)
+               against the virtual machine (``precontour compensate --learn``); written by
+               ``precontour identify`` when the log's currents gave every drive's J, B
+               and friction
 ====== ======= =================================================================
 """
 
