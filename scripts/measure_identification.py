@@ -18,7 +18,8 @@ the log:
   identified drives with the base controller (what ``precontour compensate --machine IDENT.toml
   --controller identified --learn N`` does), against the nominal drives, against the
   hidden plant itself (the best learning can do), and against the identified tf loops
-  themselves (no friction: what compensate does when the log had no currents).
+  themselves (no friction: what compensate does when the log had no currents); with
+  ``--quantize`` also against the hidden plant with its quantised encoder.
 
 Usage: python scripts/measure_identification.py [--controller pid-high] [--quantize] [--learn 4]
        [--friction-mismatch] [--paths circle,cone,fan,paper]
@@ -127,6 +128,8 @@ def main() -> None:
     # Learning models: the realistic virtual machine with the drives of each machine.
     learning = {"identified": identified, "nominal": base, "plant": plant,
                 "identified tf": identified}
+    if res is not None:
+        learning["plant with its encoder"] = plant
     print("\nprediction error, max|e_pred - e| in % of max|e| per axis X Y Z A C")
     comp_rows = []
     for name in args.paths.split(","):
@@ -154,9 +157,13 @@ def main() -> None:
         for label, mods, learn_machine in cases:
             # "identified tf": the tf loops themselves (no drives, no friction).
             learn_controller = result.name if label.endswith(" tf") else drives_controller
-            options = {} if learn_machine is None else dict(
-                machine_actual=realistic_actual(traj.t, learn_machine, learn_controller),
-                learning_passes=args.learn)
+            actual = None if learn_machine is None else realistic_actual(traj.t, learn_machine,
+                                                                         learn_controller)
+            if label.endswith("encoder"):
+                def actual(q, t=traj.t):
+                    return simulate(t, q, plant, args.controller, **run).q_act
+            options = {} if actual is None else dict(machine_actual=actual,
+                                                     learning_passes=args.learn)
             comp = compensate(traj, base.kinematics, mods, reference=reference, min_passes=1,
                               **options)
             after_sim = simulate(comp.trajectory.t, comp.trajectory.q, plant, args.controller, **run)
