@@ -576,7 +576,7 @@ def run_compensate(args: argparse.Namespace) -> int:
         print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
               f"{learning.machine_runs} runs): kept {learning.chosen}")
         print(f"  virtual machine: controller {learn_controller.name} ({learn_controller.type}) "
-              f"on the drives of {machine.name}")
+              f"on the drives of {args.machine}")
         for name, summary in (("uncompensated", learning.uncompensated),
                               ("linear compensation", learning.linear),
                               ("kept", learning.kept)):
