@@ -29,6 +29,7 @@ from .errors import NOTICES, InputError, PrecontourError
 from .files import (Terminated, check_outputs, check_report_folder, input_files,
                     sigterm_as_exception)
 from .trajectory.feedplan import DEFAULT_FEED
+from .machine.controllers import is_closed_loop
 from .machine.machine_file import load_machine
 from .simulation.virtual_machine import realistic_actual, simulate
 from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
@@ -190,6 +191,13 @@ def build_parser() -> argparse.ArgumentParser:
                                  "nowhere worse there than the uncompensated one; each pass "
                                  "costs about five virtual-machine runs; 0 = off "
                                  f"(default {DEFAULT_LEARNING_PASSES}; contour method only)")
+    compensate.add_argument("--learn-controller", metavar="NAME", default=None,
+                            help="controller the virtual machine runs when learning (default: "
+                                 "--controller; for a controller of type tf, which has no "
+                                 "drives or friction, the controller its 'base' key names, "
+                                 "e.g. the base controller of 'precontour identify', run on "
+                                 "the machine file's drives: identified J, B and friction when "
+                                 "the log had motor currents)")
     _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
     compensate.add_argument("-o", "--output", type=Path, required=True,
                             help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -519,7 +527,9 @@ def run_compensate(args: argparse.Namespace) -> int:
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
-    models = machine.controller(args.controller).error_models(machine.drives)
+    controller = machine.controller(args.controller)
+    models = controller.error_models(machine.drives)
+    learn_controller = learning_controller(machine, controller, args.learn_controller)
     traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
     if not traj.has_reference:
         raise InputError("compensation needs the reference tool path columns "
@@ -542,7 +552,11 @@ def run_compensate(args: argparse.Namespace) -> int:
             print(f"  no learning: {traj.n_samples} samples are more than "
                   f"{AT_ONCE_SAMPLES} (compensated in pieces)", file=sys.stderr)
         else:
-            machine_actual = realistic_actual(traj.t, machine, args.controller)
+            if is_closed_loop(learn_controller):
+                print(f"  learning against controller {learn_controller.name!r}, a transfer "
+                      "function without drives or friction (--learn-controller NAME: the "
+                      "controller the drives run, on this file's drives)", file=sys.stderr)
+            machine_actual = realistic_actual(traj.t, machine, learn_controller)
 
     def learning_progress(label, summary):
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
@@ -566,12 +580,24 @@ def run_compensate(args: argparse.Namespace) -> int:
         learning = result.learning
         print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
               f"{learning.machine_runs} runs): kept {learning.chosen}")
+        print(f"  virtual machine: controller {learn_controller.name} ({learn_controller.type}) "
+              f"on the drives of {args.machine}")
         for name, summary in (("uncompensated", learning.uncompensated),
                               ("linear compensation", learning.linear),
                               ("kept", learning.kept)):
             print(f"  {name + ':':<21}" + _summary_line(summary))
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
+
+
+def learning_controller(machine, controller, name: str | None):
+    """The controller the virtual machine runs when ``compensate`` learns: ``name`` when
+    given, else a closed loop's (``tf``) ``base``, else ``controller`` itself."""
+    if name is not None:
+        return machine.controller(name)
+    if is_closed_loop(controller) and controller.base is not None:
+        return machine.controller(controller.base)
+    return controller
 
 
 def run_simulate(args: argparse.Namespace) -> int:

@@ -56,6 +56,10 @@ def test_physical_parameters_go_into_the_drive_table(machine):
     assert z.friction.Tc_neg == pytest.approx(plant.drive("Z").friction.Tc_neg, rel=0.05)
     assert result.machine.drive("X") == machine.drive("X")
     assert result.axes["Z"].order == 3
+    # Every identified axis has its drive from the currents: the tf loop names the controller
+    # the drives run (pid-high, the machine's first linear one), what compensate learns against.
+    assert result.machine.controller("identified").base == "pid-high" == result.base_controller.name
+    assert 'base = "pid-high"' in result.text and "base" not in result.notes
 
 
 @pytest.mark.parametrize("order", ["0", "x", 11, "2.5"])

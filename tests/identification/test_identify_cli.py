@@ -9,6 +9,8 @@ from precontour.cli import main
 from precontour.machine.drives import AXES
 from precontour.tables import read_trajectory, write_columns
 
+from vm_logs import B_FACTORS, J_FACTORS
+
 
 def test_excite_record_identify_use(tmp_path, capsys):
     exc = tmp_path / "exc.csv"
@@ -30,6 +32,10 @@ def test_excite_record_identify_use(tmp_path, capsys):
     assert "axis X: the command never moves in the log" in printed
     assert (report / "index.html").exists() and (report / "bode.png").exists()
     assert (report / "residuals_Y.png").exists()
+    # No currents: the drives are the base machine's, so the tf loop names no controller for
+    # learning against them (compensate --learn then runs the tf loops), and says so.
+    assert load_machine(out).controller("mine").base is None
+    assert "no base controller named for learning" in printed
     # The identified machine works with the other commands.
     pred = tmp_path / "pred.csv"
     assert main(["predict", str(exc), "--machine", str(out), "--controller", "mine",
@@ -58,3 +64,76 @@ def test_identify_errors_are_one_line_exit_2(tmp_path, capsys):
     assert main(["identify", str(good), "-o", str(good)]) == 2
     assert "refusing to overwrite" in capsys.readouterr().err
     assert main(["excite", "--axes", "Q", "-o", str(tmp_path / "e.csv")]) == 2
+
+
+def _identified_file(tmp_path, base="pid-high"):
+    """A machine file as identify writes it from a log with motor currents: drives with other
+    J and B than zhang2013's (the "identified" ones), and a tf controller, here the exact
+    continuous pid-high loop of those drives, whose ``base`` names pid-high."""
+    import copy
+
+    from precontour.machine.machine_file import machine_data, machine_file_text, parse_machine
+
+    data = copy.deepcopy(machine_data("zhang2013")[0])
+    for axis, fj, fb in zip(AXES, J_FACTORS, B_FACTORS):
+        data["drives"][axis]["J"] *= fj
+        data["drives"][axis]["B"] *= fb
+    drives = parse_machine(machine_file_text(data), source="<drives>").drives
+    table = {"type": "tf", "base": base}
+    for axis, model in zip(AXES, load_machine("zhang2013").controller("pid-high")
+                           .error_models(drives)):
+        num = np.trim_zeros(np.polysub(model.den, model.num), "f")
+        table[axis] = {"num": [float(v) for v in num], "den": [float(v) for v in model.den]}
+    data["controllers"]["identified"] = table
+    path = tmp_path / "ident.toml"
+    path.write_text(machine_file_text(data))
+    return path
+
+
+def test_compensate_learns_against_the_identified_drives(tmp_path, capsys):
+    """--controller identified (type tf) predicts with the transfer function and learns
+    against the realistic virtual machine of its base controller on the file's drives: the
+    learning's uncompensated errors are those of simulate(..., "pid-high", REALISTIC) on that
+    machine, computed here independently, not those of the frictionless tf loop."""
+    from precontour import ReferencePath, contour_errors
+    from precontour.simulation.virtual_machine import REALISTIC
+
+    ident = _identified_file(tmp_path)
+    traj_path = tmp_path / "circle.csv"
+    assert main(["trajectory", "--builtin", "circle", "-o", str(traj_path)]) == 0
+    capsys.readouterr()
+    machine = load_machine(ident)
+    traj = read_trajectory(traj_path)
+    reference = ReferencePath.from_trajectory(traj)
+
+    def uncompensated(controller):
+        sim = simulate(traj.t, traj.q, machine, controller, **REALISTIC)
+        summary = contour_errors(reference, sim.q_act, machine.kinematics).summary()
+        return f"uncompensated:       tip max {summary['tip_max_um']:.3f} um"
+
+    comp = tmp_path / "comp.csv"
+    assert main(["compensate", str(traj_path), "--machine", str(ident), "--controller",
+                 "identified", "--learn", "1", "-o", str(comp)]) == 0
+    out, err = capsys.readouterr()
+    assert "virtual machine: controller pid-high (pid)" in out
+    assert uncompensated("pid-high") in out and uncompensated("identified") not in out
+    assert "transfer function without drives" not in err
+    # Learning against the tf loop itself, asked for: it runs, with a note that it has no friction.
+    assert main(["compensate", str(traj_path), "--machine", str(ident), "--controller",
+                 "identified", "--learn", "1", "--learn-controller", "identified",
+                 "-o", str(tmp_path / "comp2.csv")]) == 0
+    out, err = capsys.readouterr()
+    assert uncompensated("identified") in out and "transfer function without drives" in err
+
+
+def test_tf_base_must_name_a_controller_with_drives(tmp_path, capsys):
+    traj_path = tmp_path / "circle.csv"
+    assert main(["trajectory", "--builtin", "circle", "-o", str(traj_path)]) == 0
+    for base, message in (("nope", "no controller 'nope'"),
+                          ("identified", "is itself of type 'tf'")):
+        ident = _identified_file(tmp_path, base=base)
+        capsys.readouterr()
+        assert main(["compensate", str(traj_path), "--machine", str(ident), "--controller",
+                     "identified", "-o", str(tmp_path / "c.csv")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "[controllers.identified] base" in err and message in err

@@ -24,6 +24,7 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
+from .idle_axes import hold_idle_axes
 from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
 
 METHODS: tuple[str, ...] = ("contour", "tracking")
@@ -79,7 +80,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
                progress=None, min_passes: int = 0, machine_actual: MachineActual | None = None,
                learning_passes: int = DEFAULT_LEARNING_PASSES,
-               learning_progress=None) -> CompensationResult:
+               learning_progress=None, hold_idle: bool = True) -> CompensationResult:
     """Pre-compensate the axis commands of ``traj`` (which must carry its reference P, O).
 
     Parameters
@@ -119,6 +120,11 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     learning_progress : callable, optional
         Called as ``learning_progress(label, summary_dict)`` after each command tried on the
         machine model.
+    hold_idle : bool
+        Leave an axis whose reference command does not move, and whose correction stays
+        within the fit tolerance (``tol_linear``, ``tol_rotary``), at its reference command
+        (:mod:`precontour.compensation.idle_axes`: nanometre commands on a resting axis
+        switch friction feed-forward on).
     """
     if method not in METHODS:
         raise ValueError(f"unknown compensation method {method!r}; choose one of "
@@ -170,11 +176,21 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         else:
             break
     _, q_best, after_best, passes = best
+    idle_tolerance = np.array(
+        [COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear] * 3
+        + [COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary] * 2)
+
+    def hold(q):
+        return hold_idle_axes(traj.q, q, idle_tolerance) if hold_idle else q
+
+    q_held = hold(q_best)
+    if q_held is not q_best:
+        q_best, after_best = q_held, errors_of(predict(q_held))
     # ---- hook: stops and reversals under friction (compensation/stops.py) ----
     learning = None
     if machine_actual is not None and method == "contour":
         def contour_step(q, q_act_machine, actual):
-            return _contour_pass(q, q_act_machine, traj, reference, kinematics, actual)
+            return hold(_contour_pass(q, q_act_machine, traj, reference, kinematics, actual))
         q_learned, learning = learn_at_stops(traj.q, q_best, traj.ts, machine_actual, errors_of,
                                              contour_step, passes=learning_passes,
                                              progress=learning_progress)

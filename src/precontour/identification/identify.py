@@ -4,6 +4,9 @@ Each axis in the log that moves gets its closed loop x/X (:mod:`.tf_fit`), writt
 axis of a controller of type ``tf``; an axis that never moves (or is not in the log) keeps the
 base controller's closed loop, with a one-line note saying so. When the log has motor currents,
 the drive's J, B and friction (:mod:`.physical`) replace the base machine's in the drive table.
+When every identified axis got them, the ``tf`` table names the base controller as ``base``:
+with those drives it is the virtual machine that compensation learns against (a transfer
+function has no friction).
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..machine.controllers import Controller, closed_loop_bandwidth
+from ..machine.controllers import Controller, closed_loop_bandwidth, is_closed_loop
 from ..machine.drives import AXES, LinearErrorModel
 from ..machine.machine_file import Machine, machine_file_text, parse_machine
 from .physical import PhysicalParameters, identify_physical
@@ -137,6 +140,17 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
 
     data = copy.deepcopy(base_data)
     table = {"type": "tf"}
+    # The controller the drives run, for learning against the virtual machine with friction
+    # (a tf loop has none), named only when every identified axis got its J, B and friction
+    # from currents: learning against the base drives, whose J and B the log just showed to
+    # be off, makes compensation worse than the identified loops alone (README, measured).
+    drives_controller = ctrl.base if is_closed_loop(ctrl) else ctrl.name
+    if drives_controller is not None and drives_controller != name and set(physical) >= set(fits):
+        table["base"] = drives_controller
+    elif drives_controller is not None:
+        notes["base"] = (f"no base controller named for learning: J, B and friction were not "
+                         f"identified for axes {', '.join(a for a in fits if a not in physical)} "
+                         "(no motor currents); compensate --learn runs the identified loops")
     for i, axis in enumerate(AXES):
         if axis in fits:
             num, den = fits[axis].num, fits[axis].den

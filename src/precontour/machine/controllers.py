@@ -38,11 +38,18 @@ smc    gamma_B adaptation rate of the damping estimate, kg m^2 s/rad^2 (default 
 tf     num     closed-loop x/X numerator in s, highest power first (list)
 tf     den     closed-loop x/X denominator in s, highest power first (list); the
                model must be proper and stable (identified by ``precontour identify``)
+tf     base    optional, at the controller's level: the name of the controller of the
+               same machine file that the drives run (the one the loop was identified
+               with; not itself a ``tf``), for what needs drives and friction: learning
+               against the virtual machine (``precontour compensate --learn``); written by
+               ``precontour identify`` when the log's currents gave every drive's J, B
+               and friction
 ====== ======= =================================================================
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -231,6 +238,8 @@ class Controller:
     type: str
     axes: tuple
     source: str = field(default="", compare=False)  # for messages; not part of the law
+    #: A closed loop's (``tf``) controller with drives, from the machine file's ``base`` key.
+    base: str | None = None
 
     @property
     def is_linear(self) -> bool:
@@ -271,12 +280,46 @@ class _PerAxisParser:
         return Controller(name=name, type=kind, axes=axes, source=table.source)
 
 
+class _ClosedLoopParser(_PerAxisParser):
+    """Parser of a closed loop given per axis as a whole (``tf``), with the optional ``base``:
+    the machine file's controller that the drives run, checked by
+    :func:`check_closed_loop_bases` once all controllers are read."""
+
+    closed_loop = True
+
+    def __call__(self, name: str, table: ConfigTable,
+                 axis_names: tuple[str, ...] = AXES) -> Controller:
+        base = table.get_str("base") if table.has("base") else None
+        controller = super().__call__(name, table, axis_names)
+        return dataclasses.replace(controller, base=base)
+
+
 CONTROLLER_TYPES: dict[str, Callable[..., Controller]] = {
     "pid": _PerAxisParser(PIDGains),
     "p-pi": _PerAxisParser(PPIGains),
     "smc": _PerAxisParser(SMCGains),
-    "tf": _PerAxisParser(TransferFunction),
+    "tf": _ClosedLoopParser(TransferFunction),
 }
+
+
+def is_closed_loop(controller: Controller) -> bool:
+    """Whether ``controller`` gives the loops as a whole (``tf``): no drives or friction in it."""
+    return getattr(CONTROLLER_TYPES.get(controller.type), "closed_loop", False)
+
+
+def check_closed_loop_bases(controllers: dict, error) -> None:
+    """Every ``base`` names another controller of the machine that has drives (not a closed
+    loop); ``error(name, message)`` makes the exception for controller ``name``."""
+    for name, controller in controllers.items():
+        if controller.base is None:
+            continue
+        target = controllers.get(controller.base)
+        if target is None:
+            raise error(name, f"base: no controller {controller.base!r} in this machine file "
+                              f"(it has {', '.join(controllers)})")
+        if is_closed_loop(target):
+            raise error(name, f"base: controller {controller.base!r} is itself of type "
+                              f"{target.type!r}; name one the drives run (pid, p-pi, smc)")
 
 
 # --------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ from types import MappingProxyType
 from typing import Mapping
 
 from ._config import ConfigTable
-from .controllers import CONTROLLER_TYPES, Controller
+from .controllers import CONTROLLER_TYPES, Controller, check_closed_loop_bases
 from .drives import AXES, Drive, Friction
 from ..errors import MachineFileError
 from ..files import check_input_file
@@ -203,6 +203,8 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     controllers_table.finish()
     if not controllers:
         raise controllers_table.error(None, "a machine needs at least one controller")
+    check_closed_loop_bases(controllers, lambda ctrl_name, message: MachineFileError(
+        f"[controllers.{ctrl_name}] {message}", source=source))
     top.finish()
     return Machine(name=name, kinematics=kinematics, drives=drives,
                    controllers=MappingProxyType(controllers), servo_period=servo_period,
