@@ -30,30 +30,29 @@ import numpy as np
 #: Learning passes against the machine model by default (CLI ``compensate --learn``).
 DEFAULT_LEARNING_PASSES = 4
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
-#: every 5 ms from 0 to 100 ms. Why a fine grid (issue 13 section 1, "a settling criterion for
-#: the final dwell"): static friction holds each axis wherever it comes to rest, and while the
+#: every 10 ms from 0 to 100 ms. Why a grid (issue 13 section 1, "a settling criterion for the
+#: final dwell"): static friction holds each axis wherever it comes to rest, and while the
 #: learned command still moves in the dwell the feed-forward keeps switching the full static
 #: friction torque; settling the tail stops both, and *when* decides which axes are already at
 #: rest and on which side of the end point. That outcome changes abruptly with the delay (on
-#: the test path `fan25` with `pid-high`, pass 2 settled at 30 / 45 / 60 / 80 ms removes 65 /
-#: 85 / 82 / 88 % of the max tip error), so the delay is line-searched on the machine model
-#: itself, which costs one machine run and one contour evaluation per delay (a few ms each).
-#: With the former three delays (0, 30, 60 ms) `fan25` / `pid-high` ended at 82.3 %; with
-#: this grid 90.1 %, and no other built-in or test path's max tip reduction drops by more
-#: than 0.3 points (measured with ``scripts/measure_compensation.py --test-paths``).
-SETTLE_DELAYS: tuple[float, ...] = tuple(0.005 * k for k in range(21))
+#: the test path `fan25` with `pid-high`, pass 2 settled at 30 / 60 / 80 ms removes 65 / 82 /
+#: 88 % of the max tip error), so the delay is searched on the machine model itself, at one
+#: machine run and one contour evaluation per delay. With the former three delays (0, 30,
+#: 60 ms) `fan25` / `pid-high` ended at 82.3 %, with this grid at 87.7 % (plain sequence; a
+#: 5 ms grid changed no built-in or test path with the line search below, at twice the cost).
+SETTLE_DELAYS: tuple[float, ...] = tuple(0.01 * k for k in range(11))
 #: Steps along each learning update tried by the line-searched sequence, as fractions of the
 #: full update; the best on the machine model is the next iterate. Why (issue 13 section 1,
 #: "iterate the compensation against the nonlinear virtual machine"): the update re-applies
-#: the whole measured contour error, which is right where the machine responds to a command
-#: change as the linear model says, but at a reversal under friction the response to the same
-#: change is larger (the axis breaks away from static friction instead of creeping), so the full
-#: step overshoots and the iterates oscillate there; a half step damps that. No fixed step suits
-#: every path (with step 1/2 alone `cone` / `pid-high` ends at 85.7 % instead of 87.2 %), so the
-#: plain sequence is kept and this one added: on a fan-like sweep whose largest error sits at
-#: interior reversals (``_fan_reversals`` in ``tests/compensation/test_stops.py``) the plain
-#: update reaches 79.1 % of its max tip error removed, the line-searched one 91.1 %; `fan25`
-#: 90.1 -> 92.9 % (measured, realistic machine, `pid-high`, 4 passes).
+#: the whole measured contour error, as if the machine answered a command change linearly;
+#: near a reversal under friction it does not, the full step can overshoot, and the iterates
+#: oscillate (on a fan whose largest learned error sits at interior reversals,
+#: ``_fan_reversals`` in ``tests/compensation/test_stops.py``, `pid-high`, the plain
+#: sequence's maximum jumps between the reversals near 0.98 s and 1.46 s from pass to pass and
+#: ends at 79.1 % of the max tip error removed); a half step damps that (91.1 %). No fixed step
+#: suits every path (with step 1/2 alone `cone` / `pid-high` ends at 85.7 % instead of
+#: 87.2 %), so the plain sequence is kept and this one added; `fan25` / `pid-high` 87.7 ->
+#: 92.9 % (measured on the realistic machine, 4 passes).
 LINE_SEARCH_STEPS: tuple[float, ...] = (0.5, 1.0)
 #: Weight of the orientation error against the tip error in the selection, mm/rad (about a
 #: tool length, as in the linear passes' score).
