@@ -188,7 +188,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "friction feed-forward) where the linear model misses: stops, "
                                  "reversals, the final dwell; keeps a command only if it is "
                                  "nowhere worse there than the uncompensated one; each pass "
-                                 "costs about five virtual-machine runs; 0 = off "
+                                 "costs 27 virtual-machine runs; 0 = off "
                                  f"(default {DEFAULT_LEARNING_PASSES}; contour method only)")
     _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
     compensate.add_argument("-o", "--output", type=Path, required=True,
