@@ -177,8 +177,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     limit = reference_errors.summary()
     candidates = []
 
-    def consider(label, q, q_act=None):
-        q_act = actual(q) if q_act is None else q_act
+    def consider(label, q):
+        q_act = actual(q)
         errors = errors_of(q_act)
         summary = errors.summary()
         ok = all(summary[key] <= limit[key] for key in limit)
