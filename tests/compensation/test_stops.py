@@ -190,3 +190,25 @@ def test_the_line_search_removes_85_percent_at_interior_reversals(machine, monke
     assert after.tip.max() <= 0.15 * before.tip.max()                # solved
     for key, value in after.summary().items():
         assert value <= before.summary()[key]
+
+
+def test_commands_refused_as_inadmissible_are_not_kept(machine, fan_like):
+    """With an admissibility check that refuses every command, learning keeps the
+    uncompensated one, however good the others are on the machine."""
+    def actual(q):
+        return simulate(fan_like.t, q, machine, "pid-high", **REALISTIC).q_act
+
+    reference = ReferencePath.from_trajectory(fan_like)
+
+    def errors_of(q_act):
+        return contour_errors(reference, q_act, machine.kinematics)
+
+    models = machine.controller("pid-high").error_models(machine.drives)
+    linear = compensate(fan_like, machine.kinematics, models).trajectory.q
+    q, report = learn_at_stops(fan_like.q, linear, fan_like.ts, actual, errors_of,
+                               precompensate.learning_step(fan_like, reference,
+                                                           machine.kinematics),
+                               passes=1, admissible=lambda q: False)
+    assert report.chosen == "uncompensated" and q is fan_like.q
+    assert report.linear["tip_max_um"] < report.uncompensated["tip_max_um"]
+    assert not any(c.accepted for c in report.candidates[1:])
