@@ -2,7 +2,8 @@
 
 ``run``: read an NC program (or CL data), plan its trajectory, predict and contour
 pre-compensate the axis commands, keep them within the machine's limits (slowing down locally
-and compensating again where needed), check uncompensated and compensated commands on the
+and compensating again where needed), optionally learn against the realistic virtual
+machine within those limits (``learn``), check uncompensated and compensated commands on the
 realistic virtual machine (discrete controller, friction, feed-forward friction compensation),
 and write the compensated program (G-code), optionally a halstreamer file and the command
 table. ``export``: write an existing command file in one of those formats. Every output
