@@ -64,7 +64,9 @@ def test_pipeline_end_to_end(paper_csv, tmp_path, capsys):
     assert comp.read_text().splitlines()[0] == header
     printed = capsys.readouterr().out
     assert "predicted before" in printed and "predicted after" in printed
-    assert "learned against the virtual machine with friction (1 pass(es), 10 runs)" in printed
+    # 1 reference + 12 linear and its 11 settled tails + 13 plain pass (1 inside the contour
+    # step, 1 + 11 tails) + 14 line-searched pass (1 inside, 2 steps, 11 tails of the better)
+    assert "learned against the virtual machine with friction (1 pass(es), 40 runs)" in printed
     sim = tmp_path / "sim.csv"
     assert main(["simulate", str(comp), "--controller", "pid-high", "--reference",
                  str(paper_csv), "--friction", "on", "--ff-friction", "on", "-o", str(sim)]) == 0

@@ -261,3 +261,26 @@ def test_virtual_machine_check_in_two_processes_is_identical():
         np.testing.assert_array_equal(a.orientation, b.orientation)
     # Two different runs, each computed once in each process.
     assert serial[0].tip.max() != serial[1].tip.max()
+
+
+def test_run_learns_within_the_limits(tmp_path, capsys):
+    """``run --learn 4`` on `paper` with pid-high: 98.7 % of the max tip error removed on the
+    realistic virtual machine (88.2 % without learning), the written commands within every
+    limit (plain finite differences) and nowhere worse than uncompensated there."""
+    program = _write_cl(tmp_path / "paper.csv", "paper")
+    assert main(["run", str(program), "--controller", "pid-high", "--learn", "4",
+                 "-o", str(tmp_path / "out.ngc"), "--commands", str(tmp_path / "cmd.csv")]) == 0
+    printed = capsys.readouterr().out
+    assert "learned against the virtual machine within the limits (121 runs)" in printed
+    rows = {line[:22].strip(): [float(v) for v in line[22:].split()]
+            for line in printed.splitlines() if line.startswith("simulated ")
+            and "reduction" not in line}
+    before, after = rows["simulated before"], rows["simulated after"]
+    assert all(a <= b for a, b in zip(after, before))
+    assert after[0] <= 0.02 * before[0]
+    machine = load_machine("zhang2013")
+    commands = read_trajectory(tmp_path / "cmd.csv")
+    for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
+        peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order
+        limit = np.array([getattr(d, key) for d in machine.drives])
+        assert np.all(peak <= limit * (1 + 1e-9)), (key, peak / limit)

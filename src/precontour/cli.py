@@ -189,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "friction feed-forward) where the linear model misses: stops, "
                                  "reversals, the final dwell; keeps a command only if it is "
                                  "nowhere worse there than the uncompensated one; each pass "
-                                 "costs about five virtual-machine runs; 0 = off "
+                                 "costs 27 virtual-machine runs; 0 = off "
                                  f"(default {DEFAULT_LEARNING_PASSES}; contour method only)")
     compensate.add_argument("--learn-controller", metavar="NAME", default=None,
                             help="controller the virtual machine runs when learning (default: "
@@ -370,6 +370,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the whole program is in tool centre point mode (X Y Z = tool tip)")
     run.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
                      help="largest number of compensation passes (default 1)")
+    run.add_argument("--learn", type=_nonnegative_int, default=0, metavar="N",
+                     help="passes of learning against the virtual machine with friction "
+                          "(as for compensate), after the compensation within limits: each "
+                          "learning update smoothed, a command kept only if it keeps the "
+                          "limits and is nowhere worse there than the uncompensated one; "
+                          "each pass costs 27 virtual-machine runs (default 0 = off)")
     _add_tol_option(run)
     run.add_argument("-o", "--output", type=Path, required=True,
                      help="compensated G-code program (.ngc, .nc, ...)")
@@ -781,7 +787,7 @@ def run_run(args: argparse.Namespace) -> int:
         result = run_program(args.program, outputs, machine=args.machine,
                              controller=args.controller, tcp=args.tcp,
                              iterations=args.iterations, tolerance=args.tol,
-                             progress=progress, workers=1)
+                             progress=progress, workers=1, learn=args.learn)
         files = []
         if args.report is not None:
             from .reports.run_report import write_run_report

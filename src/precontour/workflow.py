@@ -2,7 +2,8 @@
 
 ``run``: read an NC program (or CL data), plan its trajectory, predict and contour
 pre-compensate the axis commands, keep them within the machine's limits (slowing down locally
-and compensating again where needed), check uncompensated and compensated commands on the
+and compensating again where needed), optionally learn against the realistic virtual
+machine within those limits (``learn``), check uncompensated and compensated commands on the
 realistic virtual machine (discrete controller, friction, feed-forward friction compensation),
 and write the compensated program (G-code), optionally a halstreamer file and the command
 table. ``export``: write an existing command file in one of those formats. Every output
@@ -21,7 +22,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .compensation.within_limits import LimitedCompensation, compensate_within_limits
+from .compensation.pieces import AT_ONCE_SAMPLES
+from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
+                                         learn_within_limits)
 from .errors import InputError, MachineLimitError, notice
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors, ReferencePath, contour_errors
@@ -150,6 +153,10 @@ class RunResult:
         duration = self.commands.duration
         planned = self.planned.duration
         slow = self.limited.slowdowns
+        learning = self.limited.result.learning
+        if learning is not None:
+            lines.append(f"learned against the virtual machine within the limits "
+                         f"({learning.machine_runs} runs): kept {learning.chosen}")
         lines.append(f"duration {duration:.3f} s (planned {planned:.3f} s"
                      + (f"; slowed in {len(slow)} window(s), +{self.limited.added_time:.3f} s"
                         if slow else "; not slowed") + ")")
@@ -208,9 +215,13 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
 def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
                 controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
-                workers: int | None = 1) -> RunResult:
+                workers: int | None = 1, learn: int = 0) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
+    writes. ``learn``: passes of learning against the realistic virtual machine after the
+    compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
+    0: none; skipped, with a notice, for a program not sampled at the servo period or longer
+    than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples).
+    ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
     when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
     samples; more than 1 needs the calling script's own code under
     ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
@@ -244,6 +255,21 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                                        line=line, iterations=iterations,
                                        progress=round_progress)
     timings["compensate"] = time.perf_counter() - start
+    if learn:
+        reference = limited.reference
+        if abs(reference.ts - machine_obj.servo_period) > 1e-9 * machine_obj.servo_period:
+            notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
+                   f"period {machine_obj.servo_period:g} s of the virtual machine")
+        elif reference.n_samples > AT_ONCE_SAMPLES:
+            notice(f"no learning: {reference.n_samples} samples are more than "
+                   f"{AT_ONCE_SAMPLES}")
+        else:
+            step(1, f"learn against the virtual machine ({learn} pass(es))")
+            start = time.perf_counter()
+            limited = learn_within_limits(
+                limited, machine_obj.kinematics, models, limits,
+                realistic_actual(reference.t, machine_obj, controller), learn)
+            timings["learn"] = time.perf_counter() - start
 
     step(2, f"virtual machine, uncompensated and compensated "
             f"({limited.reference.n_samples} samples each)")
@@ -255,9 +281,12 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     step(3, "write G-code")
     start = time.perf_counter()
     commands = limited.result.trajectory
+    learning = limited.result.learning
     info = ProgramInfo(machine=machine_obj.name, controller=controller,
                        method=f"contour pre-compensation within axis limits, passes "
-                              f"{limited.result.iterations}",
+                              f"{limited.result.iterations}"
+                              + (f", learned against the virtual machine ({learn} pass(es)): "
+                                 f"kept {learning.chosen}" if learning is not None else ""),
                        source=str(program))
     program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
                                  passthrough=passthrough, line=limited.line,

@@ -189,10 +189,10 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     # ---- hook: stops and reversals under friction (compensation/stops.py) ----
     learning = None
     if machine_actual is not None and method == "contour":
-        def contour_step(q, q_act_machine, actual):
-            return hold(_contour_pass(q, q_act_machine, traj, reference, kinematics, actual))
         q_learned, learning = learn_at_stops(traj.q, q_best, traj.ts, machine_actual, errors_of,
-                                             contour_step, passes=learning_passes,
+                                             learning_step(traj, reference, kinematics,
+                                                           hold=hold),
+                                             passes=learning_passes,
                                              progress=learning_progress)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
@@ -202,6 +202,17 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     return CompensationResult(trajectory=traj.with_axes(q_best), before=before,
                               after=after_best, iterations=passes, history=tuple(history),
                               method=method, learning=learning)
+
+
+def learning_step(traj: Trajectory, reference: ReferencePath, kinematics, hold=None):
+    """The contour correction as a learning step against a machine model (the ``contour_step``
+    of :func:`~precontour.compensation.stops.learn_at_stops`): ``step(q_cmd, q_act, actual)``
+    corrects ``q_cmd`` whose actual motion is ``q_act``, ``actual`` giving any other's.
+    ``hold``, if given, is applied to each corrected command (idle axes kept at rest)."""
+    def step(q_cmd, q_act, actual):
+        q = _contour_pass(q_cmd, q_act, traj, reference, kinematics, actual)
+        return q if hold is None else hold(q)
+    return step
 
 
 def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, w=None):

@@ -20,7 +20,7 @@ section 7's baseline), which is continuous and cancels the same lag to second or
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,7 +30,10 @@ from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
 from ..trajectory.retime import Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
-from .precompensate import CompensationResult, compensate, predicted_actual
+from .idle_axes import hold_idle_axes
+from .precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
+                            CompensationResult, compensate, learning_step, predicted_actual)
+from .stops import LIMITED_SMOOTHING, MachineActual, learn_at_stops
 
 #: Re-timing rounds before giving up.
 MAX_ROUNDS = 16
@@ -206,6 +209,44 @@ def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models
     tracking = 2.0 * reference.q - predicted_actual(reference.t, reference.q, models,
                                                     **tolerances)
     return taper_corrections(tracking, q, kinks, reference.ts)
+
+
+def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
+                        machine_actual: MachineActual, passes: int, *,
+                        progress=None) -> LimitedCompensation:
+    """``limited`` improved by ``passes`` passes of learning against the nonlinear machine
+    model ``machine_actual`` (:func:`~.stops.learn_at_stops`, from its commands on its
+    reference), keeping only commands within ``limits``: each learning update and each
+    settling is smoothed (:data:`~.stops.LIMITED_SMOOTHING`) and a command beyond a limit is
+    not kept; nowhere worse than the uncompensated command on that model, as there.
+    ``result.learning`` reports what was tried and kept."""
+    reference = limited.reference
+    ts, t0 = reference.ts, float(reference.t[0])
+    path = ReferencePath.from_trajectory(reference)
+
+    def errors_of(q_actual):
+        return contour_errors(path, q_actual, kinematics)
+
+    def within_limits(q):
+        return check_limits(q, ts, limits, t0=t0).ok
+
+    q_start = limited.result.trajectory.q
+    idle_tolerance = np.array([COMPENSATION_TOL_LINEAR] * 3 + [COMPENSATION_TOL_ROTARY] * 2)
+
+    def hold(q):
+        return hold_idle_axes(reference.q, q, idle_tolerance)
+
+    q, report = learn_at_stops(reference.q, q_start, ts, machine_actual, errors_of,
+                               learning_step(reference, path, kinematics, hold=hold),
+                               passes=passes,
+                               smoothing=LIMITED_SMOOTHING, admissible=within_limits,
+                               progress=progress)
+    result = replace(limited.result, learning=report)
+    if q is not q_start:
+        after = errors_of(predicted_actual(reference.t, q, models))
+        result = replace(result, trajectory=reference.with_axes(q), after=after,
+                         iterations=0 if report.chosen == "uncompensated" else result.iterations)
+    return replace(limited, result=result, check=check_limits(q, ts, limits, t0=t0))
 
 
 #: Half-width (s) around a sample over a limit where the correction is left out entirely, and
