@@ -278,7 +278,10 @@ def _kkt_system(h, x_knots):
     """
     n = h.size
     size = 3 * (n + 1)
-    ab = np.zeros((3 * _BAND + 1, size))
+    # built column by column (band_t[col, row]) and handed over transposed: Fortran order,
+    # which gbsv would otherwise copy the matrix into
+    band_t = np.zeros((size, 3 * _BAND + 1))
+    ab = band_t.T
     rhs = np.zeros(size)
     var = np.empty(4, dtype=np.intp)
     scale = np.empty(4)
