@@ -96,23 +96,31 @@ class ReferencePath:
                              field="t")
         P = np.asarray(P, dtype=float)
         O = np.asarray(O, dtype=float)
-        tip = make_interp_spline(t, P, k=5)
-        orientation = make_interp_spline(t, O, k=5)
+        # one interpolation of both: they share the collocation matrix and its factorization
+        both = make_interp_spline(t, np.concatenate([P, O], axis=1), k=5)
+        tip, orientation = (BSpline(both.t, np.ascontiguousarray(both.c[:, part]), both.k)
+                            for part in (slice(0, 3), slice(3, 6)))
         return cls(t=t, tip=tip, orientation=orientation, P=P, O=O)
 
     def closest_tip(self, P_act: np.ndarray, u0: np.ndarray | None = None,
                     window: float = DEFAULT_WINDOW,
-                    window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
+                    window_length: float = DEFAULT_WINDOW_LENGTH, *,
+                    with_points: bool = False):
         """Parameter u* of the reference point closest to each ``P_act`` (spec Eq. 19):
-        P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``."""
-        return self._search(u0, window, window_length, P_act, _TIP)[0]
+        P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``. With
+        ``with_points``: ``(u*, P(u*))``, the points found by the search."""
+        u, _, points = self._search(u0, window, window_length, P_act, _TIP)
+        return (u, points) if with_points else u
 
     def closest_orientation(self, O_act: np.ndarray, w0: np.ndarray | None = None,
                             window: float = DEFAULT_WINDOW,
-                            window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
+                            window_length: float = DEFAULT_WINDOW_LENGTH, *,
+                            with_points: bool = False):
         """Parameter w* of the reference orientation closest to each ``O_act`` (spec Eq. 21):
-        O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``."""
-        return self._search(w0, window, window_length, O_act, _ORIENTATION)[0]
+        O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``. With
+        ``with_points``: ``(w*, O(w*))`` (the curve's value, not normalized)."""
+        w, _, points = self._search(w0, window, window_length, O_act, _ORIENTATION)
+        return (w, points) if with_points else w
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
                window: float = DEFAULT_WINDOW,
@@ -120,18 +128,29 @@ class ReferencePath:
         """Contour errors of actual tips ``P_act`` and orientations ``O_act`` sampled at
         ``t`` (default: the reference's own time stamps)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        u, tip = self._search(t, window, window_length, P_act, _TIP)
-        w, orientation = self._search(t, window, window_length, O_act, _ORIENTATION)
+        u, tip, _ = self._search(t, window, window_length, P_act, _TIP)
+        w, orientation, _ = self._search(t, window, window_length, O_act, _ORIENTATION)
         return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
                              orientation_parameter=w)
 
     @cached_property
+    def _pieces(self):
+        """Breaks and Taylor coefficients of both curves, tip in dims 0-2 and orientation in
+        3-5 (:meth:`from_samples` gives them the same knots)."""
+        if not (self.tip.k == self.orientation.k
+                and np.array_equal(self.tip.t, self.orientation.t)):
+            raise ValueError("the tip and orientation curves must share their knots and degree")
+        return _pieces(self.tip, np.concatenate([self.tip.c, self.orientation.c], axis=1))
+
+    @cached_property
     def _tip_arrays(self):
-        return _curve_arrays(self.tip, self.P)
+        breaks, coef = self._pieces
+        return _curve_arrays(breaks, coef[:, :, :3], self.P)
 
     @cached_property
     def _orientation_arrays(self):
-        return _curve_arrays(self.orientation, self.O)
+        breaks, coef = self._pieces
+        return _curve_arrays(breaks, coef[:, :, 3:], self.O)
 
     @cached_property
     def _own_windows(self):
@@ -163,7 +182,8 @@ class ReferencePath:
         return base, np.maximum(lo, base - longest), np.minimum(hi, base + longest)
 
     def _search(self, start, window, window_length, points, kind):
-        """Closest parameter in each window and the distance there (mm or rad): the nearest reference sample in the window
+        """Closest parameter in each window, the distance there (mm or rad) and the closest
+        curve point: the nearest reference sample in the window
         (an exact scan that skips what the triangle inequality rules out), refined by
         Newton's method on the spline; the refined point is kept unless the sample itself is
         nearer. Compiled, one sample per iteration, spread over the available cores."""
@@ -188,19 +208,25 @@ def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
     return reference.errors(P_act, O_act, t, window, window_length)
 
 
-def _curve_arrays(curve: BSpline, samples: np.ndarray):
-    """What the compiled search needs of a reference curve: its polynomial pieces (breaks and
-    Taylor coefficients at each break, highest power first, shape (pieces, k + 1, 3)), the
-    samples and their cumulative chord length."""
+def _pieces(curve: BSpline, control: np.ndarray):
+    """The polynomial pieces of a B-spline with the knots and degree of ``curve`` and the
+    control points ``control``: breaks and Taylor coefficients at each break, highest power
+    first, shape (pieces, k + 1, dims)."""
     knots = np.ascontiguousarray(curve.t, dtype=float)
     distinct = np.concatenate([[True], np.diff(knots) > 0])
     breaks = knots[distinct]
     # the span of each piece: the last copy of its left break, knots[span] <= x < knots[span+1]
     spans = np.flatnonzero(distinct)[1:] - 1
-    coef = _taylor_coefficients(knots, np.ascontiguousarray(curve.c, dtype=float), curve.k,
+    coef = _taylor_coefficients(knots, np.ascontiguousarray(control, dtype=float), curve.k,
                                 breaks, spans)
+    return breaks, coef
+
+
+def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
+    """What the compiled search needs of a reference curve: its pieces (:func:`_pieces`), the
+    samples and their cumulative chord length."""
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
-    return breaks, coef, np.ascontiguousarray(samples), chord
+    return breaks, np.ascontiguousarray(coef), np.ascontiguousarray(samples), chord
 
 
 @numba.njit(cache=True, parallel=True)
@@ -381,18 +407,21 @@ def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo,
     n = points.shape[0]
     parameter = np.empty(n)
     distance = np.empty(n)
+    closest = np.empty((n, 3))
     n_chunks = (n + _CHUNK - 1) // _CHUNK
     for chunk in numba.prange(n_chunks):
         out = np.empty((3, 3))
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             parameter[i], distance[i] = _closest_parameter(
                 kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out)
-    return parameter, distance
+            closest[i] = out[0]
+    return parameter, distance, closest
 
 
 @numba.njit(cache=True)
 def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out):
-    """Closest parameter of one point within the sample window [lo, hi], and its distance."""
+    """Closest parameter of one point within the sample window [lo, hi], and its distance;
+    the closest curve point is left in out[0]."""
     k = _nearest_sample(samples, chord, point, base, lo, hi)
     # The minimum lies within one sample of the best sample: bracket it there and refine
     # by Newton's method safeguarded with bisection on the sign of the gradient.
@@ -433,4 +462,5 @@ def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, h
     at_sample = _distance(kind, samples[k], point)
     if refined <= at_sample:
         return u, refined
+    out[0] = samples[k]
     return t[k], at_sample

@@ -83,39 +83,52 @@ class TrackingError:
     offset: float                  # steady error of the resting axis (0 for a servo loop)
 
     def __post_init__(self):
-        # Column-major copies for evaluation: one gather per coefficient is much faster than
-        # gathering whole rows of a (segments x coefficients) array for 10^6 query times.
-        real = self.poles.imag == 0
-        object.__setattr__(self, "_forced_columns", np.ascontiguousarray(self.forced.T))
-        object.__setattr__(self, "_real", (self.poles[real].real,
-                                           np.ascontiguousarray(self.free[:, real].real.T),
-                                           self.chain_power[real]))
-        object.__setattr__(self, "_complex", (self.poles[~real],
-                                              np.ascontiguousarray(self.free[:, ~real].T),
-                                              self.chain_power[~real]))
+        object.__setattr__(self, "_arrays", (
+            np.ascontiguousarray(self.breaks, dtype=float),
+            np.ascontiguousarray(self.forced, dtype=float),
+            np.ascontiguousarray(self.poles, dtype=complex),
+            np.ascontiguousarray(self.chain_power, dtype=np.int64),
+            np.ascontiguousarray(self.free, dtype=complex)))
 
     def __call__(self, t) -> np.ndarray:
         t = np.asarray(t, dtype=float)
-        flat = t.ravel()
-        segment = np.clip(np.searchsorted(self.breaks, flat, side="right") - 1, 0,
-                          self.breaks.size - 1)
-        tau = flat - self.breaks[segment]
-        before = tau < 0
-        tau[before] = 0.0
-        columns = self._forced_columns
-        value = columns[-1][segment]
-        for power in range(columns.shape[0] - 2, -1, -1):
-            value *= tau
-            value += columns[power][segment]
-        for poles, amplitudes, powers in (self._real, self._complex):
-            for pole, amplitude, power in zip(poles, amplitudes, powers):
-                term = amplitude[segment] * np.exp(pole * tau)
-                if power:
-                    term *= tau ** power
-                value += term.real if np.iscomplexobj(term) else term
-        value[before] = 0.0
+        value = _error_at(*self._arrays, np.ascontiguousarray(t.ravel()))
         value += self.offset
         return value.reshape(t.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _error_at(breaks, forced, poles, powers, free, t):
+    """e(t) without the offset at each time: the segment's polynomial part plus its free
+    response, zero before the first break. The segment is found from the previous sample's
+    (the usual sorted grid) or by bisection."""
+    last = breaks.size - 1
+    value = np.empty(t.size)
+    real = np.empty(poles.size, dtype=np.bool_)
+    for s in range(poles.size):
+        real[s] = poles[s].imag == 0.0
+    segment = 0
+    for k in range(t.size):
+        x = t[k]
+        if not (breaks[segment] <= x and (segment == last or x < breaks[segment + 1])):
+            segment = min(max(np.searchsorted(breaks, x, side="right") - 1, 0), last)
+        tau = x - breaks[segment]
+        if tau < 0.0:
+            value[k] = 0.0
+            continue
+        total = forced[segment, forced.shape[1] - 1]
+        for p in range(forced.shape[1] - 2, -1, -1):
+            total = total * tau + forced[segment, p]
+        for s in range(poles.size):
+            if real[s]:
+                term = free[segment, s].real * np.exp(poles[s].real * tau)
+            else:
+                term = (free[segment, s] * np.exp(poles[s] * tau)).real
+            if powers[s]:
+                term *= tau ** powers[s]
+            total += term
+        value[k] = total
+    return value
 
 
 def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
@@ -278,7 +291,8 @@ class AxisPrediction:
 
 def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
                      tol_linear: float | None = None, tol_rotary: float | None = None,
-                     initial_knots: tuple | None = None) -> AxisPrediction:
+                     initial_knots: tuple | None = None,
+                     previous: tuple[np.ndarray, AxisPrediction] | None = None) -> AxisPrediction:
     """Fit each axis command (spec section 3) and predict its tracking error (section 4).
 
     Parameters
@@ -294,6 +308,10 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
     initial_knots : tuple of 5 int arrays, optional
         Knots to start each axis's fit from (``AxisPrediction.fits.knot_indices`` of a
         prediction of a similar command, see :func:`fit_min_jerk`).
+    previous : (q, AxisPrediction), optional
+        Commands and the prediction of an earlier call with the same ``t``, models and
+        tolerances: an axis whose command is identical to its command there is taken from it
+        (a compensation pass changes the rotary axes once and then only the linear ones).
     """
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -301,6 +319,8 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
     tol_rotary = DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary
 
     def axis(i):
+        if previous is not None and np.array_equal(previous[0][:, i], q[:, i]):
+            return previous[1].fits[i], previous[1].errors[i]
         fit = fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
                            name=AXES[i],
                            initial_knots=None if initial_knots is None else initial_knots[i])
