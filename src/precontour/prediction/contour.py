@@ -411,36 +411,54 @@ def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo,
     n_chunks = (n + _CHUNK - 1) // _CHUNK
     for chunk in numba.prange(n_chunks):
         out = np.empty((3, 3))
+        spare = np.empty((3, 3))
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             parameter[i], distance[i] = _closest_parameter(
-                kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out)
+                kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out,
+                spare)
             closest[i] = out[0]
     return parameter, distance, closest
 
 
 @numba.njit(cache=True)
-def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out):
+def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out,
+                       spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
-    the closest curve point is left in out[0]."""
+    the closest curve point is left in out[0] (``spare``: scratch of out's shape)."""
     k = _nearest_sample(samples, chord, point, base, lo, hi)
-    # The minimum lies within one sample of the best sample: bracket it there and refine
-    # by Newton's method safeguarded with bisection on the sign of the gradient.
+    # The minimum lies within one sample of the best sample: bracket it on the side the
+    # gradient at the sample points to, and refine by Newton's method safeguarded with
+    # bisection on the sign of the gradient.
     hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
-    a = t[max(k - 1, lo)]
-    b = t[min(k + 1, hi)]
-    g_a, _ = _gradient_curvature(kind, breaks, coef, a, hint, point, out)
-    g_b, _ = _gradient_curvature(kind, breaks, coef, b, hint, point, out)
-    interior = g_a < 0.0 and g_b > 0.0
+    u = t[k]
+    g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
+    if g > 0.0:
+        neighbour = max(k - 1, lo)
+        a, b = t[neighbour], u
+        interior = neighbour < k and _gradient_curvature(kind, breaks, coef, a, hint, point,
+                                                         spare)[0] < 0.0
+    else:
+        neighbour = min(k + 1, hi)
+        a, b = u, t[neighbour]
+        interior = neighbour > k and _gradient_curvature(kind, breaks, coef, b, hint, point,
+                                                         spare)[0] > 0.0
     # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
-    u = t[k]
-    for _ in range(NEWTON_ITERATIONS):
-        g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
+    evaluated = False
+    for iteration in range(NEWTON_ITERATIONS):
+        if iteration > 0:
+            g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
         if c > 0.0 and abs(g) <= PARAMETER_TOLERANCE * c:
             # converged: the last Newton step is below the tolerance (taking it as a bracket
-            # test would fail in round-off where it does not move u, and bisect away)
-            u = min(max(u - g / c, u_lo), u_hi)
+            # test would fail in round-off where it does not move u, and bisect away); the
+            # point moves with it by its Taylor expansion (the step is below 1 ns)
+            u_new = min(max(u - g / c, u_lo), u_hi)
+            step = u_new - u
+            for d in range(3):
+                out[0, d] += step * (out[1, d] + 0.5 * step * out[2, d])
+            u = u_new
+            evaluated = True
             break
         if g > 0.0:
             b = u
@@ -456,7 +474,8 @@ def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, h
         u = u_new
         if converged:
             break
-    _evaluate(breaks, coef, u, hint, out)
+    if not evaluated:
+        _evaluate(breaks, coef, u, hint, out)
     # the curve interpolates the samples: its distance at t[k] is the sample's
     refined = _distance(kind, out[0], point)
     at_sample = _distance(kind, samples[k], point)
