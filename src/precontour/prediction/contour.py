@@ -145,16 +145,26 @@ class ReferencePath:
     @cached_property
     def _tip_arrays(self):
         breaks, coef = self._pieces
-        return _curve_arrays(breaks, coef[:, :, :3], self.P)
+        return _curve_arrays(breaks, coef, self.P)
 
     @cached_property
     def _orientation_arrays(self):
         breaks, coef = self._pieces
-        return _curve_arrays(breaks, coef[:, :, 3:], self.O)
+        return _curve_arrays(breaks, coef, self.O)
 
     @cached_property
     def _own_windows(self):
         return self._window(self.t, DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH)
+
+    @cached_property
+    def _tip_isolation(self):
+        _, _, samples, chord = self._tip_arrays
+        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
+
+    @cached_property
+    def _orientation_isolation(self):
+        _, _, samples, chord = self._orientation_arrays
+        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
 
     @cached_property
     def progress(self) -> np.ndarray:
@@ -195,9 +205,10 @@ class ReferencePath:
             base, lo, hi = self._window(start, window, window_length)
         breaks, coef, samples, chord = (self._tip_arrays if kind == _TIP
                                         else self._orientation_arrays)
+        isolation = self._tip_isolation if kind == _TIP else self._orientation_isolation
         points = np.ascontiguousarray(points, dtype=float)
-        return _closest_parameters(kind, self.t, samples, chord, breaks, coef, points,
-                                   base, lo, hi)
+        return _closest_parameters(kind, self.t, samples, chord, isolation, breaks, coef,
+                                   points, base, lo, hi)
 
 
 def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
@@ -223,10 +234,11 @@ def _pieces(curve: BSpline, control: np.ndarray):
 
 
 def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
-    """What the compiled search needs of a reference curve: its pieces (:func:`_pieces`), the
-    samples and their cumulative chord length."""
+    """What the compiled search needs of a reference curve: the pieces of both curves
+    (:attr:`ReferencePath._pieces`; the search takes its curve's three of their six
+    dimensions), the samples and their cumulative chord length."""
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
-    return breaks, np.ascontiguousarray(coef), np.ascontiguousarray(samples), chord
+    return breaks, coef, np.ascontiguousarray(samples), chord
 
 
 @numba.njit(cache=True, parallel=True)
@@ -282,10 +294,11 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
 
 
 @numba.njit(cache=True)
-def _evaluate(breaks, coef, x, hint, out):
+def _evaluate(breaks, coef, offset, x, hint, out):
     """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
-    (Horner's scheme carried for the derivatives), the piece found by walking from ``hint``
-    (parameters searched lie within a few pieces of a known sample)."""
+    (Horner's scheme carried for the derivatives; dimensions offset .. offset + 2 of
+    ``coef``), the piece found by walking from ``hint`` (parameters searched lie within a few
+    pieces of a known sample)."""
     last = coef.shape[0] - 1
     piece = min(max(hint, 0), last)
     while piece > 0 and breaks[piece] > x:
@@ -294,13 +307,13 @@ def _evaluate(breaks, coef, x, hint, out):
         piece += 1
     s = x - breaks[piece]
     for d in range(3):
-        value = coef[piece, 0, d]
+        value = coef[piece, 0, offset + d]
         first = 0.0
         second = 0.0
         for p in range(1, coef.shape[1]):
             second = second * s + first
             first = first * s + value
-            value = value * s + coef[piece, p, d]
+            value = value * s + coef[piece, p, offset + d]
         out[0, d] = value
         out[1, d] = first
         out[2, d] = 2.0 * second
@@ -310,7 +323,7 @@ def _evaluate(breaks, coef, x, hint, out):
 def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
     -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
-    _evaluate(breaks, coef, x, hint, out)
+    _evaluate(breaks, coef, 3 * kind, x, hint, out)
     g = 0.0
     c = 0.0
     if kind == 0:
@@ -350,18 +363,37 @@ def _chord(samples, k, point):
 
 
 @numba.njit(cache=True)
-def _nearest_sample(samples, chord, point, base, lo, hi):
+def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
-    that is also the smallest angle). Exact: no sample within chord length d_j - best of a
-    sample j at distance d_j can be nearer than best (triangle inequality), so the scan jumps
-    past them by a galloping search on the cumulative chord length."""
+    that is also the smallest angle). Exact: the sample k nearest among its neighbours is it
+    if the samples other than k's neighbours lie at least 2 d_k from sample k (its
+    ``isolation``; triangle inequality). Else a scan: no sample within chord length
+    d_j - best of a sample j at distance d_j can be nearer than best (triangle inequality),
+    so it jumps past them by a galloping search on the cumulative chord length."""
+    radius, lower, upper = isolation
     best_k = base
     best = _chord(samples, base, point)
+    while best_k > lo:
+        d = _chord(samples, best_k - 1, point)
+        if not d < best:
+            break
+        best_k -= 1
+        best = d
+    if best_k == base:
+        while best_k < hi:
+            d = _chord(samples, best_k + 1, point)
+            if not d < best:
+                break
+            best_k += 1
+            best = d
+    if 2.0 * best <= radius[best_k] and lower[best_k] <= lo and hi <= upper[best_k]:
+        return best_k
+    start = best_k
     # round-off of the cumulative chord length: never skip a sample by it
     margin = 1e-12 * (1.0 + abs(chord[lo]) + abs(chord[hi]))
     for direction in (1, -1):
         bound = hi if direction > 0 else lo
-        j = base + direction
+        j = start + direction
         while (j - bound) * direction <= 0:
             d = _chord(samples, j, point)
             if d < best:
@@ -400,8 +432,59 @@ def _first_reaching(chord, j, direction, bound, target):
         step *= 2
 
 
+#: Each sample's isolation is taken over the search windows of the samples this many either
+#: side of it, so that it serves wherever the window of a point whose nearest sample it is
+#: lies within those.
+ISOLATION_SPAN = 4
+
+
 @numba.njit(cache=True, parallel=True)
-def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo, hi):
+def _isolation(samples, chord, lo, hi, span):
+    """For each sample k: the smallest distance from it to the samples m, |m - k| >= 2, of
+    the index range [lower_k, upper_k] (the union of the windows [lo, hi] of the samples
+    within ``span`` of k), and that range."""
+    n = samples.shape[0]
+    radius = np.empty(n)
+    lower = np.empty(n, dtype=np.intp)
+    upper = np.empty(n, dtype=np.intp)
+    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        for k in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
+            a = lo[max(k - span, 0)]
+            b = hi[min(k + span, n - 1)]
+            for j in range(max(k - span, 0), min(k + span, n - 1) + 1):
+                a = min(a, lo[j])
+                b = max(b, hi[j])
+            lower[k] = a
+            upper[k] = b
+            radius[k] = _distance_to_others(samples, chord, k, a, b)
+    return radius, lower, upper
+
+
+@numba.njit(cache=True)
+def _distance_to_others(samples, chord, k, a, b):
+    """Smallest distance from sample k to the samples m in [a, b] with |m - k| >= 2 (inf if
+    none), by the galloping scan of _nearest_sample."""
+    best = np.inf
+    margin = 1e-12 * (1.0 + abs(chord[a]) + abs(chord[b]))
+    point = samples[k]
+    for direction in (1, -1):
+        bound = b if direction > 0 else a
+        j = k + 2 * direction
+        while (j - bound) * direction <= 0:
+            d = _chord(samples, j, point)
+            if d < best:
+                best = d
+            reach = d - best - margin
+            if reach <= 0.0:
+                j += direction
+                continue
+            j = _first_reaching(chord, j, direction, bound, chord[j] + direction * reach)
+    return best
+
+
+@numba.njit(cache=True, parallel=True)
+def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points, base, lo,
+                        hi):
     """Closest parameter of every point (see ReferencePath._search), in chunks of samples
     spread over the cores."""
     n = points.shape[0]
@@ -414,18 +497,18 @@ def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo,
         spare = np.empty((3, 3))
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             parameter[i], distance[i] = _closest_parameter(
-                kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out,
-                spare)
+                kind, t, samples, chord, isolation, breaks, coef, points[i], base[i], lo[i],
+                hi[i], out, spare)
             closest[i] = out[0]
     return parameter, distance, closest
 
 
 @numba.njit(cache=True)
-def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out,
-                       spare):
+def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
+                       hi, out, spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
     the closest curve point is left in out[0] (``spare``: scratch of out's shape)."""
-    k = _nearest_sample(samples, chord, point, base, lo, hi)
+    k = _nearest_sample(samples, chord, isolation, point, base, lo, hi)
     # The minimum lies within one sample of the best sample: bracket it on the side the
     # gradient at the sample points to, and refine by Newton's method safeguarded with
     # bisection on the sign of the gradient.
@@ -475,7 +558,7 @@ def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, h
         if converged:
             break
     if not evaluated:
-        _evaluate(breaks, coef, u, hint, out)
+        _evaluate(breaks, coef, 3 * kind, u, hint, out)
     # the curve interpolates the samples: its distance at t[k] is the sample's
     refined = _distance(kind, out[0], point)
     at_sample = _distance(kind, samples[k], point)
