@@ -33,6 +33,9 @@ NEWTON_ITERATIONS = 60
 #: Newton's method stops for a sample when its parameter step is below this (s): 1 ns is
 #: 0.1 nm of path at 100 mm/s.
 PARAMETER_TOLERANCE = 1e-9
+#: Newton's method also stops after a step below this (s) when the step after it is
+#: estimated below PARAMETER_TOLERANCE / 10 (the point follows it by its Taylor expansion).
+LAST_STEP = 1e-6
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
 _TIP, _ORIENTATION = 0, 1
@@ -529,13 +532,23 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
     evaluated = False
+    u_previous, c_previous = u, c            # the previous iterate
+    u_evaluated = u
     for iteration in range(NEWTON_ITERATIONS):
         if iteration > 0:
+            u_previous, c_previous = u_evaluated, c
             g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
-        if c > 0.0 and abs(g) <= PARAMETER_TOLERANCE * c:
-            # converged: the last Newton step is below the tolerance (taking it as a bracket
-            # test would fail in round-off where it does not move u, and bisect away); the
-            # point moves with it by its Taylor expansion (the step is below 1 ns)
+        u_evaluated = u
+        # Newton's error after a step s is about |g''| s^2 / (2 c); g'' from the change of c
+        # since the previous iterate
+        next_step = np.inf
+        if c > 0.0 and u != u_previous and abs(g) <= LAST_STEP * c:
+            next_step = 0.5 * abs((c - c_previous) / (u - u_previous)) * (g / c) ** 2 / c
+        if c > 0.0 and (abs(g) <= PARAMETER_TOLERANCE * c
+                        or next_step <= 0.1 * PARAMETER_TOLERANCE):
+            # converged: the last Newton step is below the tolerance, or the step after it
+            # would be (taking it as a bracket test would fail in round-off where it does not
+            # move u, and bisect away); the point moves with it by its Taylor expansion
             u_new = min(max(u - g / c, u_lo), u_hi)
             step = u_new - u
             for d in range(3):
