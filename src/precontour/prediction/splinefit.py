@@ -16,6 +16,7 @@ jerk as the stretch's end conditions.
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -267,7 +268,7 @@ def _solve_chains(t_knots, x_knots, first, ends, time_scale):
     """
     h = np.diff(t_knots) / time_scale
     scaled = ends * time_scale ** np.array([1.0, 2.0, 3.0, 1.0, 2.0, 3.0])
-    ab, rhs = _kkt_system(h, x_knots, first, scaled)
+    ab, rhs = _kkt_system(h, x_knots, first, scaled, _band_buffer(3 * x_knots.size))
     _, _, solution, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=True, overwrite_b=True)
     if info != 0:  # pragma: no cover - distinct knot times make the system regular
         raise np.linalg.LinAlgError(f"minimum-jerk system is singular (LAPACK info {info})")
@@ -294,7 +295,7 @@ def _solve_chains(t_knots, x_knots, first, ends, time_scale):
 #: conditions (what the whole solve gives there, to that factor); the spline stays C3.
 LOCAL_REACH = 32
 #: ... when those stretches hold at most this fraction of the knots (else the whole solve).
-LOCAL_FRACTION = 0.5
+LOCAL_FRACTION = 0.8
 
 
 def _solve_with_new_knots(t, x, knots, coef, new, deviation):
@@ -352,8 +353,22 @@ def _update_deviation(coef, t, x, knots, lo, hi, deviation):
             deviation[k] = value[k - start] - x[k]
 
 
+_buffers = threading.local()
+
+
+def _band_buffer(columns: int) -> np.ndarray:
+    """This thread's band storage of ``columns`` columns, transposed: a fit solves dozens of
+    systems of up to 3 x 10^5 unknowns, and fresh memory for each costs more than the
+    solve's own zeroing."""
+    buffer = getattr(_buffers, "band", None)
+    if buffer is None or buffer.shape[0] < columns:
+        buffer = np.empty((max(columns, 3 * 4096), 3 * _BAND + 1))
+        _buffers.band = buffer
+    return buffer[:columns]
+
+
 @numba.njit(cache=True, nogil=True)
-def _kkt_system(h, x_knots, first, ends):
+def _kkt_system(h, x_knots, first, ends, band_t):
     """Banded KKT matrix and right-hand side of :func:`_solve_chains`, in the band storage
     LAPACK's gbsv factors in place (half bandwidth _BAND, _BAND more rows for the fill-in of
     pivoting).
@@ -366,9 +381,9 @@ def _kkt_system(h, x_knots, first, ends):
     rows.
     """
     size = 3 * x_knots.size
-    # built column by column (band_t[col, row]) and handed over transposed: Fortran order,
-    # which gbsv would otherwise copy the matrix into
-    band_t = np.zeros((size, 3 * _BAND + 1))
+    # built column by column (band_t[col, row], shape (size, 3 _BAND + 1)) and handed over
+    # transposed: Fortran order, which gbsv would otherwise copy the matrix into
+    band_t[:] = 0.0
     ab = band_t.T
     rhs = np.zeros(size)
     var = np.empty(4, dtype=np.intp)
