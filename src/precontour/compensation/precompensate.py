@@ -146,25 +146,29 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         previous = (q, prediction)
         return q - prediction(t)
 
+    def searched(q_actual):
+        """Contour errors of q_actual, and what a pass needs of them: the actual
+        orientations and their closest reference orientations."""
+        P_act, O_act = kinematics.forward(q_actual)
+        errors, _, O_closest = reference.errors(P_act, O_act, with_points=True)
+        return errors, (O_act, errors.orientation_parameter, O_closest)
+
     def errors_of(q_actual):
-        return contour_errors(reference, q_actual, kinematics)
+        return searched(q_actual)[0]
 
     q_cmd = traj.q
     q_act = predict(q_cmd)
-    before = errors_of(q_act)
+    before, known = searched(q_act)
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
-    current = before
     for n in range(1, iterations + 1):
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:
-            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict,
-                                  current.orientation_parameter)
+            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known)
         q_cmd = q_new
         q_act = predict(q_cmd)
-        after = errors_of(q_act)
-        current = after
+        after, known = searched(q_act)
         history.append(after.summary())
         if progress is not None:
             progress(n, after.summary())
@@ -191,17 +195,19 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                               method=method, learning=learning)
 
 
-def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, w=None):
+def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known=None):
     """One pass of spec section 6, steps 1-5, with the current command in place of the
-    reference command (identical on the first pass). ``w``: the closest reference
-    orientation parameters of the predicted actual ``q_act`` where already known (the
-    contour errors of ``q_act`` found them)."""
+    reference command (identical on the first pass). ``known``: the orientations of the
+    predicted actual ``q_act``, their closest reference parameters and orientations, where
+    already known (the contour errors of ``q_act`` found them)."""
     P_cmd, O_cmd = kinematics.forward(q_cmd)
     # Steps 1-2: orientation through the spherical parallelogram O1, O*, O_cmd, O_comp.
-    _, O1 = kinematics.forward(q_act)
-    if w is None:
-        w = reference.closest_orientation(O1, traj.t)
-    O_star = _unit(_lead_blend(_unit(reference.orientation(w)), traj.O, w - traj.t, traj.ts))
+    if known is None:
+        _, O1 = kinematics.forward(q_act)
+        w, O_closest = reference.closest_orientation(O1, traj.t, with_points=True)
+    else:
+        O1, w, O_closest = known
+    O_star = _unit(_lead_blend(_unit(O_closest), traj.O, w - traj.t, traj.ts))
     O_centre = _unit(O_cmd + O_star)
     O_comp = _unit(2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1)
     rotary = _rotary_towards(kinematics, q_cmd[:, 3], q_cmd[:, 4], O_comp)

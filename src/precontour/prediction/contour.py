@@ -126,15 +126,17 @@ class ReferencePath:
         return (w, points) if with_points else w
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
-               window: float = DEFAULT_WINDOW,
-               window_length: float = DEFAULT_WINDOW_LENGTH) -> ContourErrors:
+               window: float = DEFAULT_WINDOW, window_length: float = DEFAULT_WINDOW_LENGTH,
+               *, with_points: bool = False):
         """Contour errors of actual tips ``P_act`` and orientations ``O_act`` sampled at
-        ``t`` (default: the reference's own time stamps)."""
+        ``t`` (default: the reference's own time stamps). With ``with_points``:
+        ``(errors, P(u*), O(w*))``, the closest points the search found (O not normalized)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        u, tip, _ = self._search(t, window, window_length, P_act, _TIP)
-        w, orientation, _ = self._search(t, window, window_length, O_act, _ORIENTATION)
-        return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
-                             orientation_parameter=w)
+        u, tip, P_closest = self._search(t, window, window_length, P_act, _TIP)
+        w, orientation, O_closest = self._search(t, window, window_length, O_act, _ORIENTATION)
+        errors = ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
+                               orientation_parameter=w)
+        return (errors, P_closest, O_closest) if with_points else errors
 
     @cached_property
     def _pieces(self):
