@@ -109,11 +109,13 @@ def test_nearest_sample_and_isolation_match_brute_force():
     ref = ReferencePath.from_samples(t, P, np.tile([0.0, 0.0, 1.0], (t.size, 1)))
     _, _, samples, chord = ref._tip_arrays
     base, lo, hi = ref._own_windows
-    radius, lower, upper = ref._tip_isolation
-    for k in rng.choice(t.size, 200, replace=False):
-        others = np.r_[lower[k]:max(k - 1, lower[k]), min(k + 2, upper[k] + 1):upper[k] + 1]
-        expected = np.linalg.norm(samples[others] - samples[k], axis=1).min(initial=np.inf)
-        assert radius[k] == pytest.approx(expected, rel=1e-12)
+    isolated, lower, upper = ref._tip_isolation
+    for block in rng.choice(isolated.size, 60, replace=False):
+        first, last, centre = contour._block_core(block, t.size)
+        others = np.r_[lower[block]:max(first, lower[block]),
+                       min(last + 1, upper[block] + 1):upper[block] + 1]
+        expected = np.linalg.norm(samples[others] - samples[centre], axis=1).min(initial=np.inf)
+        assert isolated[block] == pytest.approx(expected, rel=1e-12)
     points = P + rng.normal(0, 0.05, P.shape)
     for i in rng.choice(t.size, 300, replace=False):
         k = contour._nearest_sample(samples, chord, ref._tip_isolation, points[i], base[i],

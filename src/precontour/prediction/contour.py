@@ -41,6 +41,8 @@ MAX_STEP = 0.005
 _TIP, _ORIENTATION = 0, 1
 #: Samples per task of the compiled search.
 _CHUNK = 4096
+# The compiled helpers called per sample are inlined ("always"): a call that passes arrays
+# costs two atomic reference-count updates per array, which made the search 3 times slower.
 
 
 @dataclass(frozen=True)
@@ -261,13 +263,15 @@ def _taylor_coefficients(knots, control, degree, breaks, spans):
         points = np.zeros((degree + 1, degree + 1, dims))
         for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
             _taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
-                                    right, points, coef[j])
+                                    right, points, coef, j)
     return coef
 
 
-@numba.njit(cache=True)
-def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out):
-    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[degree - m]."""
+@numba.njit(cache=True, inline="always")
+def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out,
+                            piece):
+    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[piece, degree - m]
+    (scalar loops throughout: no array views per piece)."""
     dims = control.shape[1]
     basis[0, 0] = 1.0
     for q in range(1, degree + 1):
@@ -281,11 +285,12 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
         basis[q, q] = saved
     first = span - degree
     for i in range(degree + 1):
-        points[0, i] = control[first + i]
-    factorial = 1.0
+        for d in range(dims):
+            points[0, i, d] = control[first + i, d]
+    inverse_factorial = 1.0
     for m in range(degree + 1):
         if m > 0:
-            factorial *= m
+            inverse_factorial /= m
             for i in range(degree + 1 - m):
                 scale = (degree - m + 1) / (knots[first + i + degree + 1]
                                             - knots[first + i + m])
@@ -295,10 +300,10 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
             total = 0.0
             for i in range(degree + 1 - m):
                 total += basis[degree - m, i] * points[m, i, d]
-            out[degree - m, d] = total / factorial
+            out[piece, degree - m, d] = total * inverse_factorial
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _evaluate(breaks, coef, offset, x, hint, out):
     """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
     (Horner's scheme carried for the derivatives; dimensions offset .. offset + 2 of
@@ -324,7 +329,7 @@ def _evaluate(breaks, coef, offset, x, hint, out):
         out[2, d] = 2.0 * second
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
     -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
@@ -343,7 +348,7 @@ def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     return g, c
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _distance(kind, value, point):
     """Tip: Euclidean distance; orientation: the angle (atan2 of |a x b| and a . b, as
     ``angle_between``)."""
@@ -367,15 +372,16 @@ def _chord(samples, k, point):
     return np.sqrt(s)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
-    that is also the smallest angle). Exact: the sample k nearest among its neighbours is it
-    if the samples other than k's neighbours lie at least 2 d_k from sample k (its
-    ``isolation``; triangle inequality). Else a scan: no sample within chord length
+    that is also the smallest angle). Exact: from ``base`` down to the nearest of its
+    neighbours, then the nearest of the core of that sample's block (:func:`_isolation`) is
+    it if the core's centre is at least ``best + |point - centre|`` from every other sample
+    of the window (triangle inequality). Else a scan: no sample within chord length
     d_j - best of a sample j at distance d_j can be nearer than best (triangle inequality),
     so it jumps past them by a galloping search on the cumulative chord length."""
-    radius, lower, upper = isolation
+    isolated, lower, upper = isolation
     best_k = base
     best = _chord(samples, base, point)
     while best_k > lo:
@@ -391,8 +397,16 @@ def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
                 break
             best_k += 1
             best = d
-    if 2.0 * best <= radius[best_k] and lower[best_k] <= lo and hi <= upper[best_k]:
-        return best_k
+    block = best_k // ISOLATION_BLOCK
+    first, last, centre = _block_core(block, samples.shape[0])
+    if lower[block] <= lo and hi <= upper[block]:
+        for j in range(max(first, lo), min(last, hi) + 1):
+            d = _chord(samples, j, point)
+            if d < best:
+                best = d
+                best_k = j
+        if isolated[block] >= best + _chord(samples, centre, point):
+            return best_k
     start = best_k
     # round-off of the cumulative chord length: never skip a sample by it
     margin = 1e-12 * (1.0 + abs(chord[lo]) + abs(chord[hi]))
@@ -437,44 +451,60 @@ def _first_reaching(chord, j, direction, bound, target):
         step *= 2
 
 
-#: Each sample's isolation is taken over the search windows of the samples this many either
-#: side of it, so that it serves wherever the window of a point whose nearest sample it is
-#: lies within those.
+#: Samples per block of the isolation (:func:`_isolation`); a block's core is the block and
+#: one sample either side.
+ISOLATION_BLOCK = 8
+#: A block's isolation is taken over the search windows of its samples and of this many
+#: samples either side, so that it serves any point whose window lies within those.
 ISOLATION_SPAN = 4
+
+
+@numba.njit(cache=True, inline="always")
+def _block_core(block, n):
+    """First and last sample of a block's core, and its centre sample."""
+    start = block * ISOLATION_BLOCK
+    return (max(start - 1, 0), min(start + ISOLATION_BLOCK, n - 1),
+            min(start + ISOLATION_BLOCK // 2, n - 1))
 
 
 @numba.njit(cache=True, parallel=True)
 def _isolation(samples, chord, lo, hi, span):
-    """For each sample k: the smallest distance from it to the samples m, |m - k| >= 2, of
-    the index range [lower_k, upper_k] (the union of the windows [lo, hi] of the samples
-    within ``span`` of k), and that range."""
+    """For each block of ISOLATION_BLOCK samples: the smallest distance from its centre
+    sample to the samples outside its core within [lower, upper] (the union of the windows
+    [lo, hi] of its samples and of ``span`` samples either side), and that range. Computed
+    once per reference curve; :func:`_nearest_sample` then needs no scan for a point whose
+    nearest core sample is nearer than that distance less the point's distance from the
+    centre, as nearly always."""
     n = samples.shape[0]
-    radius = np.empty(n)
-    lower = np.empty(n, dtype=np.intp)
-    upper = np.empty(n, dtype=np.intp)
-    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
-        for k in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
-            a = lo[max(k - span, 0)]
-            b = hi[min(k + span, n - 1)]
-            for j in range(max(k - span, 0), min(k + span, n - 1) + 1):
+    blocks = (n + ISOLATION_BLOCK - 1) // ISOLATION_BLOCK
+    isolated = np.empty(blocks)
+    lower = np.empty(blocks, dtype=np.intp)
+    upper = np.empty(blocks, dtype=np.intp)
+    for chunk in numba.prange((blocks + _CHUNK - 1) // _CHUNK):
+        for block in range(chunk * _CHUNK, min(blocks, (chunk + 1) * _CHUNK)):
+            start = block * ISOLATION_BLOCK
+            a = n
+            b = 0
+            for j in range(max(start - span, 0), min(start + ISOLATION_BLOCK + span, n)):
                 a = min(a, lo[j])
                 b = max(b, hi[j])
-            lower[k] = a
-            upper[k] = b
-            radius[k] = _distance_to_others(samples, chord, k, a, b)
-    return radius, lower, upper
+            lower[block] = a
+            upper[block] = b
+            first, last, centre = _block_core(block, n)
+            isolated[block] = _distance_to_others(samples, chord, centre, first, last, a, b)
+    return isolated, lower, upper
 
 
-@numba.njit(cache=True)
-def _distance_to_others(samples, chord, k, a, b):
-    """Smallest distance from sample k to the samples m in [a, b] with |m - k| >= 2 (inf if
-    none), by the galloping scan of _nearest_sample."""
+@numba.njit(cache=True, inline="always")
+def _distance_to_others(samples, chord, k, first, last, a, b):
+    """Smallest distance from sample k to the samples of [a, b] outside [first, last] (inf
+    if none), by the galloping scan of _nearest_sample."""
     best = np.inf
     margin = 1e-12 * (1.0 + abs(chord[a]) + abs(chord[b]))
     point = samples[k]
     for direction in (1, -1):
         bound = b if direction > 0 else a
-        j = k + 2 * direction
+        j = last + 1 if direction > 0 else first - 1
         while (j - bound) * direction <= 0:
             d = _chord(samples, j, point)
             if d < best:
@@ -508,7 +538,7 @@ def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points
     return parameter, distance, closest
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
                        hi, out, spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
