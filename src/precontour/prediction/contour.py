@@ -544,22 +544,16 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
     the closest curve point is left in out[0] (``spare``: scratch of out's shape)."""
     k = _nearest_sample(samples, chord, isolation, point, base, lo, hi)
-    # The minimum lies within one sample of the best sample: bracket it on the side the
-    # gradient at the sample points to, and refine by Newton's method safeguarded with
-    # bisection on the sign of the gradient.
+    # The minimum lies within one sample of the best sample: bracket it there and refine
+    # by Newton's method safeguarded with bisection on the sign of the gradient.
     hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
+    a = t[max(k - 1, lo)]
+    b = t[min(k + 1, hi)]
+    g_a = _gradient_curvature(kind, breaks, coef, a, hint, point, spare)[0]
+    g_b = _gradient_curvature(kind, breaks, coef, b, hint, point, spare)[0]
+    interior = g_a < 0.0 and g_b > 0.0
     u = t[k]
     g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
-    if g > 0.0:
-        neighbour = max(k - 1, lo)
-        a, b = t[neighbour], u
-        interior = neighbour < k and _gradient_curvature(kind, breaks, coef, a, hint, point,
-                                                         spare)[0] < 0.0
-    else:
-        neighbour = min(k + 1, hi)
-        a, b = u, t[neighbour]
-        interior = neighbour > k and _gradient_curvature(kind, breaks, coef, b, hint, point,
-                                                         spare)[0] > 0.0
     # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
