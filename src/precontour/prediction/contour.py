@@ -34,7 +34,7 @@ NEWTON_ITERATIONS = 60
 #: 0.1 nm of path at 100 mm/s.
 PARAMETER_TOLERANCE = 1e-9
 #: Newton's method also stops after a step below this (s) when the step after it is
-#: estimated below PARAMETER_TOLERANCE / 10 (the point follows it by its Taylor expansion).
+#: estimated below PARAMETER_TOLERANCE / 10.
 LAST_STEP = 1e-6
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
@@ -287,10 +287,10 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
     for i in range(degree + 1):
         for d in range(dims):
             points[0, i, d] = control[first + i, d]
-    inverse_factorial = 1.0
+    factorial = 1.0
     for m in range(degree + 1):
         if m > 0:
-            inverse_factorial /= m
+            factorial *= m
             for i in range(degree + 1 - m):
                 scale = (degree - m + 1) / (knots[first + i + degree + 1]
                                             - knots[first + i + m])
@@ -300,7 +300,7 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
             total = 0.0
             for i in range(degree + 1 - m):
                 total += basis[degree - m, i] * points[m, i, d]
-            out[piece, degree - m, d] = total * inverse_factorial
+            out[piece, degree - m, d] = total / factorial
 
 
 @numba.njit(cache=True, inline="always")
@@ -557,7 +557,6 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
     # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
-    evaluated = False
     u_previous, c_previous = u, c            # the previous iterate
     u_evaluated = u
     for iteration in range(NEWTON_ITERATIONS):
@@ -574,13 +573,8 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
                         or next_step <= 0.1 * PARAMETER_TOLERANCE):
             # converged: the last Newton step is below the tolerance, or the step after it
             # would be (taking it as a bracket test would fail in round-off where it does not
-            # move u, and bisect away); the point moves with it by its Taylor expansion
-            u_new = min(max(u - g / c, u_lo), u_hi)
-            step = u_new - u
-            for d in range(3):
-                out[0, d] += step * (out[1, d] + 0.5 * step * out[2, d])
-            u = u_new
-            evaluated = True
+            # move u, and bisect away)
+            u = min(max(u - g / c, u_lo), u_hi)
             break
         if g > 0.0:
             b = u
@@ -596,8 +590,7 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
         u = u_new
         if converged:
             break
-    if not evaluated:
-        _evaluate(breaks, coef, 3 * kind, u, hint, out)
+    _evaluate(breaks, coef, 3 * kind, u, hint, out)
     # the curve interpolates the samples: its distance at t[k] is the sample's
     refined = _distance(kind, out[0], point)
     at_sample = _distance(kind, samples[k], point)
