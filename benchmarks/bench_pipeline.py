@@ -125,7 +125,7 @@ def _stage(name: str, traj):
 def _prepare(reference) -> None:
     """Build what a reference path computes on first use (whichever version is measured)."""
     for name in ("_tip_arrays", "_orientation_arrays", "_own_windows", "_tip_tree",
-                 "_orientation_tree", "progress"):
+                 "_orientation_tree", "_tip_isolation", "_orientation_isolation", "progress"):
         if hasattr(type(reference), name):
             getattr(reference, name)
 

@@ -95,3 +95,31 @@ def test_contour_errors_from_axes(machine):
 def test_reference_needed():
     with pytest.raises(InputError, match="Px,Py,Pz,Oi,Oj,Ok"):
         ReferencePath.from_trajectory(Trajectory(T, np.zeros((T.size, 5))))
+
+
+def test_nearest_sample_and_isolation_match_brute_force():
+    # a path that doubles back on itself within the search window (hairpins 0.1 mm apart):
+    # where the samples around the nearest one are not isolated the scan must decide
+    from precontour.prediction import contour
+
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 1.0, 1e-3)
+    x = 0.5 * np.sin(2 * np.pi * 12 * t)                 # back and forth, 24 turns
+    P = np.stack([x, 0.1 * np.floor(24 * t), np.zeros_like(t)], axis=1)
+    ref = ReferencePath.from_samples(t, P, np.tile([0.0, 0.0, 1.0], (t.size, 1)))
+    _, _, samples, chord = ref._tip_arrays
+    base, lo, hi = ref._own_windows
+    isolated, lower, upper = ref._tip_isolation
+    for block in rng.choice(isolated.size, 60, replace=False):
+        first, last, centre = contour._block_core(block, t.size)
+        others = np.r_[lower[block]:max(first, lower[block]),
+                       min(last + 1, upper[block] + 1):upper[block] + 1]
+        expected = np.linalg.norm(samples[others] - samples[centre], axis=1).min(initial=np.inf)
+        assert isolated[block] == pytest.approx(expected, rel=1e-12)
+    points = P + rng.normal(0, 0.05, P.shape)
+    for i in rng.choice(t.size, 300, replace=False):
+        k = contour._nearest_sample(samples, chord, ref._tip_isolation, points[i], base[i],
+                                    lo[i], hi[i])
+        distances = np.linalg.norm(samples[lo[i]:hi[i] + 1] - points[i], axis=1)
+        assert lo[i] <= k <= hi[i]
+        assert np.linalg.norm(samples[k] - points[i]) <= distances.min() * (1 + 1e-12)

@@ -179,3 +179,33 @@ def test_warm_start_keeps_the_given_knots_and_needs_fewer_rounds():
     assert np.abs(warm(t) - (x + correction)).max() <= 1e-4
     assert np.all(np.isin(original.knot_index, warm.knot_index))
     assert warm.rounds < cold.rounds
+
+
+def test_rounds_that_add_few_knots_match_the_whole_solve(monkeypatch):
+    # rounds adding few knots solve again only around them (LOCAL_REACH knots either side):
+    # the result must be the minimum-jerk spline through the final knots, as one whole solve
+    # gives it, and C3
+    import precontour.prediction.splinefit as splinefit
+
+    chains = []
+    solve_chains = splinefit._solve_chains
+
+    def counting(t_knots, x_knots, first, ends, time_scale):
+        chains.append(first.size - 1)
+        return solve_chains(t_knots, x_knots, first, ends, time_scale)
+
+    monkeypatch.setattr(splinefit, "_solve_chains", counting)
+    t = np.arange(0, 30.0, 1e-3)
+    s = t / t[-1]
+    x = 40 * (35 * s**4 - 84 * s**5 + 70 * s**6 - 20 * s**7)
+    for centre in (3.0, 11.0, 17.5, 26.0):      # a few sharp local features
+        x = x + 0.05 * np.exp(-((t - centre) / 0.02) ** 2)
+    fit = fit_min_jerk(t, x, 1e-5)
+    assert max(chains) > 1                      # some round was solved locally
+    knots = fit.knot_index
+    whole = splinefit._to_ppoly(splinefit._solve_min_jerk(t[knots], x[knots]), t[knots])
+    assert np.abs(fit(t) - whole(t)).max() <= 1e-6 * 1e-5
+    assert np.abs(fit(t) - x).max() <= 1e-5
+    # jerk jumps: the whole solve's own round-off here is 1e-9 of the largest jerk (5 ms
+    # segments at the features)
+    _check_c3_and_rest(fit.spline, rtol=1e-8)

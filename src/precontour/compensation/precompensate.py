@@ -140,34 +140,41 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     # knots of the command it corrects and more (issue 11: the corrected commands took three
     # times the rounds of the original when fitted from scratch).
     knots = None
+    # The step-5 command keeps the rotary axes of the step-3 one: their predictions are reused.
+    previous = None
 
     def predict(q):
-        nonlocal knots
-        prediction = predict_tracking(t, q, models, initial_knots=knots,
+        nonlocal knots, previous
+        prediction = predict_tracking(t, q, models, initial_knots=knots, previous=previous,
                                       tol_linear=COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear,
                                       tol_rotary=COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
         knots = prediction.fits.knot_indices
+        previous = (q, prediction)
         return q - prediction(t)
 
+    def searched(q_actual):
+        """Contour errors of q_actual, and what a pass needs of them: the actual
+        orientations and their closest reference orientations."""
+        P_act, O_act = kinematics.forward(q_actual)
+        errors, _, O_closest = reference.errors(P_act, O_act, with_points=True)
+        return errors, (O_act, errors.orientation_parameter, O_closest)
+
     def errors_of(q_actual):
-        return contour_errors(reference, q_actual, kinematics)
+        return searched(q_actual)[0]
 
     q_cmd = traj.q
     q_act = predict(q_cmd)
-    before = errors_of(q_act)
+    before, known = searched(q_act)
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
-    current = before
     for n in range(1, iterations + 1):
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:
-            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict,
-                                  current.orientation_parameter)
+            q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known)
         q_cmd = q_new
         q_act = predict(q_cmd)
-        after = errors_of(q_act)
-        current = after
+        after, known = searched(q_act)
         history.append(after.summary())
         if progress is not None:
             progress(n, after.summary())
@@ -215,17 +222,19 @@ def learning_step(traj: Trajectory, reference: ReferencePath, kinematics, hold=N
     return step
 
 
-def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, w=None):
+def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known=None):
     """One pass of spec section 6, steps 1-5, with the current command in place of the
-    reference command (identical on the first pass). ``w``: the closest reference
-    orientation parameters of the predicted actual ``q_act`` where already known (the
-    contour errors of ``q_act`` found them)."""
+    reference command (identical on the first pass). ``known``: the orientations of the
+    predicted actual ``q_act``, their closest reference parameters and orientations, where
+    already known (the contour errors of ``q_act`` found them)."""
     P_cmd, O_cmd = kinematics.forward(q_cmd)
     # Steps 1-2: orientation through the spherical parallelogram O1, O*, O_cmd, O_comp.
-    _, O1 = kinematics.forward(q_act)
-    if w is None:
-        w = reference.closest_orientation(O1, traj.t)
-    O_star = _unit(_lead_blend(_unit(reference.orientation(w)), traj.O, w - traj.t, traj.ts))
+    if known is None:
+        _, O1 = kinematics.forward(q_act)
+        w, O_closest = reference.closest_orientation(O1, traj.t, with_points=True)
+    else:
+        O1, w, O_closest = known
+    O_star = _unit(_lead_blend(_unit(O_closest), traj.O, w - traj.t, traj.ts))
     O_centre = _unit(O_cmd + O_star)
     O_comp = _unit(2.0 * np.einsum("ij,ij->i", O1, O_centre)[:, None] * O_centre - O1)
     rotary = _rotary_towards(kinematics, q_cmd[:, 3], q_cmd[:, 4], O_comp)
@@ -233,8 +242,8 @@ def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, w=None):
     q2 = np.concatenate([kinematics.linear_axes(P_cmd, *rotary.T), rotary], axis=1)
     P3, _ = kinematics.forward(predict(q2))
     # Step 4: add the predicted tip contour error vector to the commanded tip.
-    u = reference.closest_tip(P3, traj.t)
-    P_star = _lead_blend(reference.tip(u), traj.P, u - traj.t, traj.ts)
+    u, P_closest = reference.closest_tip(P3, traj.t, with_points=True)
+    P_star = _lead_blend(P_closest, traj.P, u - traj.t, traj.ts)
     P_comp = P_cmd + (P_star - P3)
     # Step 5: back to axis commands.
     return np.concatenate([kinematics.linear_axes(P_comp, *rotary.T), rotary], axis=1)
@@ -290,15 +299,20 @@ def _rotary_towards(kinematics, A, C, O_target):
     for _ in range(ROTARY_NEWTON_STEPS):
         jac = kinematics.orientation_jacobian(A, C)                     # (N, 3, 2)
         residual = O_target - kinematics.orientation(A, C)
-        normal = np.einsum("nki,nkj->nij", jac, jac)
+        d_a, d_c = jac[..., 0], jac[..., 1]
         sin_a = np.abs(np.sin(A))
         damping = np.where(sin_a < POLE_ZONE,
                            POLE_DAMPING**2 * (1.0 - (sin_a / POLE_ZONE) ** 2), 0.0)
-        normal[:, 0, 0] += damping
-        normal[:, 1, 1] += damping
-        step = np.linalg.solve(normal, np.einsum("nki,nk->ni", jac, residual)[..., None])[..., 0]
-        A += step[:, 0]
-        C += step[:, 1]
+        # the 2 x 2 normal equations, solved in closed form (positive definite: the A column
+        # of the Jacobian is a unit vector)
+        n_aa = np.einsum("nk,nk->n", d_a, d_a) + damping
+        n_ac = np.einsum("nk,nk->n", d_a, d_c)
+        n_cc = np.einsum("nk,nk->n", d_c, d_c) + damping
+        r_a = np.einsum("nk,nk->n", d_a, residual)
+        r_c = np.einsum("nk,nk->n", d_c, residual)
+        det = n_aa * n_cc - n_ac * n_ac
+        A += (n_cc * r_a - n_ac * r_c) / det
+        C += (n_aa * r_c - n_ac * r_a) / det
     return np.stack([A, C], axis=1)
 
 

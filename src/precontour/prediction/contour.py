@@ -33,11 +33,16 @@ NEWTON_ITERATIONS = 60
 #: Newton's method stops for a sample when its parameter step is below this (s): 1 ns is
 #: 0.1 nm of path at 100 mm/s.
 PARAMETER_TOLERANCE = 1e-9
+#: Newton's method also stops after a step below this (s) when the step after it is
+#: estimated below PARAMETER_TOLERANCE / 10.
+LAST_STEP = 1e-6
 #: Largest step (s) outside a bracket; keeps the iteration local where the path stops.
 MAX_STEP = 0.005
 _TIP, _ORIENTATION = 0, 1
 #: Samples per task of the compiled search.
 _CHUNK = 4096
+# The compiled helpers called per sample are inlined ("always"): a call that passes arrays
+# costs two atomic reference-count updates per array, which made the search 3 times slower.
 
 
 @dataclass(frozen=True)
@@ -96,46 +101,77 @@ class ReferencePath:
                              field="t")
         P = np.asarray(P, dtype=float)
         O = np.asarray(O, dtype=float)
-        tip = make_interp_spline(t, P, k=5)
-        orientation = make_interp_spline(t, O, k=5)
+        # one interpolation of both: they share the collocation matrix and its factorization
+        both = make_interp_spline(t, np.concatenate([P, O], axis=1), k=5)
+        tip, orientation = (BSpline(both.t, np.ascontiguousarray(both.c[:, part]), both.k)
+                            for part in (slice(0, 3), slice(3, 6)))
         return cls(t=t, tip=tip, orientation=orientation, P=P, O=O)
 
     def closest_tip(self, P_act: np.ndarray, u0: np.ndarray | None = None,
                     window: float = DEFAULT_WINDOW,
-                    window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
+                    window_length: float = DEFAULT_WINDOW_LENGTH, *,
+                    with_points: bool = False):
         """Parameter u* of the reference point closest to each ``P_act`` (spec Eq. 19):
-        P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``."""
-        return self._search(u0, window, window_length, P_act, _TIP)[0]
+        P'(u*) . (P(u*) - P_act) = 0, searched within the window around ``u0``. With
+        ``with_points``: ``(u*, P(u*))``, the points found by the search."""
+        u, _, points = self._search(u0, window, window_length, P_act, _TIP)
+        return (u, points) if with_points else u
 
     def closest_orientation(self, O_act: np.ndarray, w0: np.ndarray | None = None,
                             window: float = DEFAULT_WINDOW,
-                            window_length: float = DEFAULT_WINDOW_LENGTH) -> np.ndarray:
+                            window_length: float = DEFAULT_WINDOW_LENGTH, *,
+                            with_points: bool = False):
         """Parameter w* of the reference orientation closest to each ``O_act`` (spec Eq. 21):
-        O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``."""
-        return self._search(w0, window, window_length, O_act, _ORIENTATION)[0]
+        O'(w*) . O_act = 0 on the unit sphere, searched within the window around ``w0``. With
+        ``with_points``: ``(w*, O(w*))`` (the curve's value, not normalized)."""
+        w, _, points = self._search(w0, window, window_length, O_act, _ORIENTATION)
+        return (w, points) if with_points else w
 
     def errors(self, P_act: np.ndarray, O_act: np.ndarray, t: np.ndarray | None = None,
-               window: float = DEFAULT_WINDOW,
-               window_length: float = DEFAULT_WINDOW_LENGTH) -> ContourErrors:
+               window: float = DEFAULT_WINDOW, window_length: float = DEFAULT_WINDOW_LENGTH,
+               *, with_points: bool = False):
         """Contour errors of actual tips ``P_act`` and orientations ``O_act`` sampled at
-        ``t`` (default: the reference's own time stamps)."""
+        ``t`` (default: the reference's own time stamps). With ``with_points``:
+        ``(errors, P(u*), O(w*))``, the closest points the search found (O not normalized)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        u, tip = self._search(t, window, window_length, P_act, _TIP)
-        w, orientation = self._search(t, window, window_length, O_act, _ORIENTATION)
-        return ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
-                             orientation_parameter=w)
+        u, tip, P_closest = self._search(t, window, window_length, P_act, _TIP)
+        w, orientation, O_closest = self._search(t, window, window_length, O_act, _ORIENTATION)
+        errors = ContourErrors(tip=tip, orientation=orientation, tip_parameter=u,
+                               orientation_parameter=w)
+        return (errors, P_closest, O_closest) if with_points else errors
+
+    @cached_property
+    def _pieces(self):
+        """Breaks and Taylor coefficients of both curves, tip in dims 0-2 and orientation in
+        3-5 (:meth:`from_samples` gives them the same knots)."""
+        if not (self.tip.k == self.orientation.k
+                and np.array_equal(self.tip.t, self.orientation.t)):
+            raise ValueError("the tip and orientation curves must share their knots and degree")
+        return _pieces(self.tip, np.concatenate([self.tip.c, self.orientation.c], axis=1))
 
     @cached_property
     def _tip_arrays(self):
-        return _curve_arrays(self.tip, self.P)
+        breaks, coef = self._pieces
+        return _curve_arrays(breaks, coef, self.P)
 
     @cached_property
     def _orientation_arrays(self):
-        return _curve_arrays(self.orientation, self.O)
+        breaks, coef = self._pieces
+        return _curve_arrays(breaks, coef, self.O)
 
     @cached_property
     def _own_windows(self):
         return self._window(self.t, DEFAULT_WINDOW, DEFAULT_WINDOW_LENGTH)
+
+    @cached_property
+    def _tip_isolation(self):
+        _, _, samples, chord = self._tip_arrays
+        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
+
+    @cached_property
+    def _orientation_isolation(self):
+        _, _, samples, chord = self._orientation_arrays
+        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
 
     @cached_property
     def progress(self) -> np.ndarray:
@@ -163,7 +199,8 @@ class ReferencePath:
         return base, np.maximum(lo, base - longest), np.minimum(hi, base + longest)
 
     def _search(self, start, window, window_length, points, kind):
-        """Closest parameter in each window and the distance there (mm or rad): the nearest reference sample in the window
+        """Closest parameter in each window, the distance there (mm or rad) and the closest
+        curve point: the nearest reference sample in the window
         (an exact scan that skips what the triangle inequality rules out), refined by
         Newton's method on the spline; the refined point is kept unless the sample itself is
         nearer. Compiled, one sample per iteration, spread over the available cores."""
@@ -175,9 +212,10 @@ class ReferencePath:
             base, lo, hi = self._window(start, window, window_length)
         breaks, coef, samples, chord = (self._tip_arrays if kind == _TIP
                                         else self._orientation_arrays)
+        isolation = self._tip_isolation if kind == _TIP else self._orientation_isolation
         points = np.ascontiguousarray(points, dtype=float)
-        return _closest_parameters(kind, self.t, samples, chord, breaks, coef, points,
-                                   base, lo, hi)
+        return _closest_parameters(kind, self.t, samples, chord, isolation, breaks, coef,
+                                   points, base, lo, hi)
 
 
 def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
@@ -188,17 +226,24 @@ def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
     return reference.errors(P_act, O_act, t, window, window_length)
 
 
-def _curve_arrays(curve: BSpline, samples: np.ndarray):
-    """What the compiled search needs of a reference curve: its polynomial pieces (breaks and
-    Taylor coefficients at each break, highest power first, shape (pieces, k + 1, 3)), the
-    samples and their cumulative chord length."""
+def _pieces(curve: BSpline, control: np.ndarray):
+    """The polynomial pieces of a B-spline with the knots and degree of ``curve`` and the
+    control points ``control``: breaks and Taylor coefficients at each break, highest power
+    first, shape (pieces, k + 1, dims)."""
     knots = np.ascontiguousarray(curve.t, dtype=float)
     distinct = np.concatenate([[True], np.diff(knots) > 0])
     breaks = knots[distinct]
     # the span of each piece: the last copy of its left break, knots[span] <= x < knots[span+1]
     spans = np.flatnonzero(distinct)[1:] - 1
-    coef = _taylor_coefficients(knots, np.ascontiguousarray(curve.c, dtype=float), curve.k,
+    coef = _taylor_coefficients(knots, np.ascontiguousarray(control, dtype=float), curve.k,
                                 breaks, spans)
+    return breaks, coef
+
+
+def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
+    """What the compiled search needs of a reference curve: the pieces of both curves
+    (:attr:`ReferencePath._pieces`; the search takes its curve's three of their six
+    dimensions), the samples and their cumulative chord length."""
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
     return breaks, coef, np.ascontiguousarray(samples), chord
 
@@ -218,13 +263,15 @@ def _taylor_coefficients(knots, control, degree, breaks, spans):
         points = np.zeros((degree + 1, degree + 1, dims))
         for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
             _taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
-                                    right, points, coef[j])
+                                    right, points, coef, j)
     return coef
 
 
-@numba.njit(cache=True)
-def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out):
-    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[degree - m]."""
+@numba.njit(cache=True, inline="always")
+def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out,
+                            piece):
+    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[piece, degree - m]
+    (scalar loops throughout: no array views per piece)."""
     dims = control.shape[1]
     basis[0, 0] = 1.0
     for q in range(1, degree + 1):
@@ -238,7 +285,8 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
         basis[q, q] = saved
     first = span - degree
     for i in range(degree + 1):
-        points[0, i] = control[first + i]
+        for d in range(dims):
+            points[0, i, d] = control[first + i, d]
     factorial = 1.0
     for m in range(degree + 1):
         if m > 0:
@@ -252,14 +300,15 @@ def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right,
             total = 0.0
             for i in range(degree + 1 - m):
                 total += basis[degree - m, i] * points[m, i, d]
-            out[degree - m, d] = total / factorial
+            out[piece, degree - m, d] = total / factorial
 
 
-@numba.njit(cache=True)
-def _evaluate(breaks, coef, x, hint, out):
+@numba.njit(cache=True, inline="always")
+def _evaluate(breaks, coef, offset, x, hint, out):
     """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
-    (Horner's scheme carried for the derivatives), the piece found by walking from ``hint``
-    (parameters searched lie within a few pieces of a known sample)."""
+    (Horner's scheme carried for the derivatives; dimensions offset .. offset + 2 of
+    ``coef``), the piece found by walking from ``hint`` (parameters searched lie within a few
+    pieces of a known sample)."""
     last = coef.shape[0] - 1
     piece = min(max(hint, 0), last)
     while piece > 0 and breaks[piece] > x:
@@ -268,23 +317,23 @@ def _evaluate(breaks, coef, x, hint, out):
         piece += 1
     s = x - breaks[piece]
     for d in range(3):
-        value = coef[piece, 0, d]
+        value = coef[piece, 0, offset + d]
         first = 0.0
         second = 0.0
         for p in range(1, coef.shape[1]):
             second = second * s + first
             first = first * s + value
-            value = value * s + coef[piece, p, d]
+            value = value * s + coef[piece, p, offset + d]
         out[0, d] = value
         out[1, d] = first
         out[2, d] = 2.0 * second
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
     -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
-    _evaluate(breaks, coef, x, hint, out)
+    _evaluate(breaks, coef, 3 * kind, x, hint, out)
     g = 0.0
     c = 0.0
     if kind == 0:
@@ -299,7 +348,7 @@ def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     return g, c
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _distance(kind, value, point):
     """Tip: Euclidean distance; orientation: the angle (atan2 of |a x b| and a . b, as
     ``angle_between``)."""
@@ -323,19 +372,47 @@ def _chord(samples, k, point):
     return np.sqrt(s)
 
 
-@numba.njit(cache=True)
-def _nearest_sample(samples, chord, point, base, lo, hi):
+@numba.njit(cache=True, inline="always")
+def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
-    that is also the smallest angle). Exact: no sample within chord length d_j - best of a
-    sample j at distance d_j can be nearer than best (triangle inequality), so the scan jumps
-    past them by a galloping search on the cumulative chord length."""
+    that is also the smallest angle). Exact: from ``base`` down to the nearest of its
+    neighbours, then the nearest of the core of that sample's block (:func:`_isolation`) is
+    it if the core's centre is at least ``best + |point - centre|`` from every other sample
+    of the window (triangle inequality). Else a scan: no sample within chord length
+    d_j - best of a sample j at distance d_j can be nearer than best (triangle inequality),
+    so it jumps past them by a galloping search on the cumulative chord length."""
+    isolated, lower, upper = isolation
     best_k = base
     best = _chord(samples, base, point)
+    while best_k > lo:
+        d = _chord(samples, best_k - 1, point)
+        if not d < best:
+            break
+        best_k -= 1
+        best = d
+    if best_k == base:
+        while best_k < hi:
+            d = _chord(samples, best_k + 1, point)
+            if not d < best:
+                break
+            best_k += 1
+            best = d
+    block = best_k // ISOLATION_BLOCK
+    first, last, centre = _block_core(block, samples.shape[0])
+    if lower[block] <= lo and hi <= upper[block]:
+        for j in range(max(first, lo), min(last, hi) + 1):
+            d = _chord(samples, j, point)
+            if d < best:
+                best = d
+                best_k = j
+        if isolated[block] >= best + _chord(samples, centre, point):
+            return best_k
+    start = best_k
     # round-off of the cumulative chord length: never skip a sample by it
     margin = 1e-12 * (1.0 + abs(chord[lo]) + abs(chord[hi]))
     for direction in (1, -1):
         bound = hi if direction > 0 else lo
-        j = base + direction
+        j = start + direction
         while (j - bound) * direction <= 0:
             d = _chord(samples, j, point)
             if d < best:
@@ -374,43 +451,129 @@ def _first_reaching(chord, j, direction, bound, target):
         step *= 2
 
 
+#: Samples per block of the isolation (:func:`_isolation`); a block's core is the block and
+#: one sample either side.
+ISOLATION_BLOCK = 8
+#: A block's isolation is taken over the search windows of its samples and of this many
+#: samples either side, so that it serves any point whose window lies within those.
+ISOLATION_SPAN = 4
+
+
+@numba.njit(cache=True, inline="always")
+def _block_core(block, n):
+    """First and last sample of a block's core, and its centre sample."""
+    start = block * ISOLATION_BLOCK
+    return (max(start - 1, 0), min(start + ISOLATION_BLOCK, n - 1),
+            min(start + ISOLATION_BLOCK // 2, n - 1))
+
+
 @numba.njit(cache=True, parallel=True)
-def _closest_parameters(kind, t, samples, chord, breaks, coef, points, base, lo, hi):
+def _isolation(samples, chord, lo, hi, span):
+    """For each block of ISOLATION_BLOCK samples: the smallest distance from its centre
+    sample to the samples outside its core within [lower, upper] (the union of the windows
+    [lo, hi] of its samples and of ``span`` samples either side), and that range. Computed
+    once per reference curve; :func:`_nearest_sample` then needs no scan for a point whose
+    nearest core sample is nearer than that distance less the point's distance from the
+    centre, as nearly always."""
+    n = samples.shape[0]
+    blocks = (n + ISOLATION_BLOCK - 1) // ISOLATION_BLOCK
+    isolated = np.empty(blocks)
+    lower = np.empty(blocks, dtype=np.intp)
+    upper = np.empty(blocks, dtype=np.intp)
+    for chunk in numba.prange((blocks + _CHUNK - 1) // _CHUNK):
+        for block in range(chunk * _CHUNK, min(blocks, (chunk + 1) * _CHUNK)):
+            start = block * ISOLATION_BLOCK
+            a = n
+            b = 0
+            for j in range(max(start - span, 0), min(start + ISOLATION_BLOCK + span, n)):
+                a = min(a, lo[j])
+                b = max(b, hi[j])
+            lower[block] = a
+            upper[block] = b
+            first, last, centre = _block_core(block, n)
+            isolated[block] = _distance_to_others(samples, chord, centre, first, last, a, b)
+    return isolated, lower, upper
+
+
+@numba.njit(cache=True, inline="always")
+def _distance_to_others(samples, chord, k, first, last, a, b):
+    """Smallest distance from sample k to the samples of [a, b] outside [first, last] (inf
+    if none), by the galloping scan of _nearest_sample."""
+    best = np.inf
+    margin = 1e-12 * (1.0 + abs(chord[a]) + abs(chord[b]))
+    point = samples[k]
+    for direction in (1, -1):
+        bound = b if direction > 0 else a
+        j = last + 1 if direction > 0 else first - 1
+        while (j - bound) * direction <= 0:
+            d = _chord(samples, j, point)
+            if d < best:
+                best = d
+            reach = d - best - margin
+            if reach <= 0.0:
+                j += direction
+                continue
+            j = _first_reaching(chord, j, direction, bound, chord[j] + direction * reach)
+    return best
+
+
+@numba.njit(cache=True, parallel=True)
+def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points, base, lo,
+                        hi):
     """Closest parameter of every point (see ReferencePath._search), in chunks of samples
     spread over the cores."""
     n = points.shape[0]
     parameter = np.empty(n)
     distance = np.empty(n)
+    closest = np.empty((n, 3))
     n_chunks = (n + _CHUNK - 1) // _CHUNK
     for chunk in numba.prange(n_chunks):
         out = np.empty((3, 3))
+        spare = np.empty((3, 3))
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             parameter[i], distance[i] = _closest_parameter(
-                kind, t, samples, chord, breaks, coef, points[i], base[i], lo[i], hi[i], out)
-    return parameter, distance
+                kind, t, samples, chord, isolation, breaks, coef, points[i], base[i], lo[i],
+                hi[i], out, spare)
+            closest[i] = out[0]
+    return parameter, distance, closest
 
 
-@numba.njit(cache=True)
-def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, hi, out):
-    """Closest parameter of one point within the sample window [lo, hi], and its distance."""
-    k = _nearest_sample(samples, chord, point, base, lo, hi)
+@numba.njit(cache=True, inline="always")
+def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
+                       hi, out, spare):
+    """Closest parameter of one point within the sample window [lo, hi], and its distance;
+    the closest curve point is left in out[0] (``spare``: scratch of out's shape)."""
+    k = _nearest_sample(samples, chord, isolation, point, base, lo, hi)
     # The minimum lies within one sample of the best sample: bracket it there and refine
     # by Newton's method safeguarded with bisection on the sign of the gradient.
     hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
     a = t[max(k - 1, lo)]
     b = t[min(k + 1, hi)]
-    g_a, _ = _gradient_curvature(kind, breaks, coef, a, hint, point, out)
-    g_b, _ = _gradient_curvature(kind, breaks, coef, b, hint, point, out)
+    g_a = _gradient_curvature(kind, breaks, coef, a, hint, point, spare)[0]
+    g_b = _gradient_curvature(kind, breaks, coef, b, hint, point, spare)[0]
     interior = g_a < 0.0 and g_b > 0.0
+    u = t[k]
+    g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
     # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
-    u = t[k]
-    for _ in range(NEWTON_ITERATIONS):
-        g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
-        if c > 0.0 and abs(g) <= PARAMETER_TOLERANCE * c:
-            # converged: the last Newton step is below the tolerance (taking it as a bracket
-            # test would fail in round-off where it does not move u, and bisect away)
+    u_previous, c_previous = u, c            # the previous iterate
+    u_evaluated = u
+    for iteration in range(NEWTON_ITERATIONS):
+        if iteration > 0:
+            u_previous, c_previous = u_evaluated, c
+            g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
+        u_evaluated = u
+        # Newton's error after a step s is about |g''| s^2 / (2 c); g'' from the change of c
+        # since the previous iterate
+        next_step = np.inf
+        if c > 0.0 and u != u_previous and abs(g) <= LAST_STEP * c:
+            next_step = 0.5 * abs((c - c_previous) / (u - u_previous)) * (g / c) ** 2 / c
+        if c > 0.0 and (abs(g) <= PARAMETER_TOLERANCE * c
+                        or next_step <= 0.1 * PARAMETER_TOLERANCE):
+            # converged: the last Newton step is below the tolerance, or the step after it
+            # would be (taking it as a bracket test would fail in round-off where it does not
+            # move u, and bisect away)
             u = min(max(u - g / c, u_lo), u_hi)
             break
         if g > 0.0:
@@ -427,10 +590,11 @@ def _closest_parameter(kind, t, samples, chord, breaks, coef, point, base, lo, h
         u = u_new
         if converged:
             break
-    _evaluate(breaks, coef, u, hint, out)
+    _evaluate(breaks, coef, 3 * kind, u, hint, out)
     # the curve interpolates the samples: its distance at t[k] is the sample's
     refined = _distance(kind, out[0], point)
     at_sample = _distance(kind, samples[k], point)
     if refined <= at_sample:
         return u, refined
+    out[0] = samples[k]
     return t[k], at_sample

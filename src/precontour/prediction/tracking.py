@@ -11,7 +11,8 @@ tau, each chain is an exact polynomial (particular) part plus exp(J tau) times t
 initial state: for PID (three distinct real poles) this is the paper's cubic + three
 exponentials. Continuity of the chain states across joints is the paper's continuity of
 e, e', e''. The states are carried in local time, so exp(l tau) never overflows however long a
-segment is, and the joint-to-joint recursion is an associative scan (O(n log n), vectorized).
+segment is, and the joint-to-joint recursion is one compiled pass over the segments (linear in
+their number).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import factorial
 
+import numba
 import numpy as np
 from scipy.interpolate import PPoly
 
@@ -81,39 +83,52 @@ class TrackingError:
     offset: float                  # steady error of the resting axis (0 for a servo loop)
 
     def __post_init__(self):
-        # Column-major copies for evaluation: one gather per coefficient is much faster than
-        # gathering whole rows of a (segments x coefficients) array for 10^6 query times.
-        real = self.poles.imag == 0
-        object.__setattr__(self, "_forced_columns", np.ascontiguousarray(self.forced.T))
-        object.__setattr__(self, "_real", (self.poles[real].real,
-                                           np.ascontiguousarray(self.free[:, real].real.T),
-                                           self.chain_power[real]))
-        object.__setattr__(self, "_complex", (self.poles[~real],
-                                              np.ascontiguousarray(self.free[:, ~real].T),
-                                              self.chain_power[~real]))
+        object.__setattr__(self, "_arrays", (
+            np.ascontiguousarray(self.breaks, dtype=float),
+            np.ascontiguousarray(self.forced, dtype=float),
+            np.ascontiguousarray(self.poles, dtype=complex),
+            np.ascontiguousarray(self.chain_power, dtype=np.int64),
+            np.ascontiguousarray(self.free, dtype=complex)))
 
     def __call__(self, t) -> np.ndarray:
         t = np.asarray(t, dtype=float)
-        flat = t.ravel()
-        segment = np.clip(np.searchsorted(self.breaks, flat, side="right") - 1, 0,
-                          self.breaks.size - 1)
-        tau = flat - self.breaks[segment]
-        before = tau < 0
-        tau[before] = 0.0
-        columns = self._forced_columns
-        value = columns[-1][segment]
-        for power in range(columns.shape[0] - 2, -1, -1):
-            value *= tau
-            value += columns[power][segment]
-        for poles, amplitudes, powers in (self._real, self._complex):
-            for pole, amplitude, power in zip(poles, amplitudes, powers):
-                term = amplitude[segment] * np.exp(pole * tau)
-                if power:
-                    term *= tau ** power
-                value += term.real if np.iscomplexobj(term) else term
-        value[before] = 0.0
+        value = _error_at(*self._arrays, np.ascontiguousarray(t.ravel()))
         value += self.offset
         return value.reshape(t.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _error_at(breaks, forced, poles, powers, free, t):
+    """e(t) without the offset at each time: the segment's polynomial part plus its free
+    response, zero before the first break. The segment is found from the previous sample's
+    (the usual sorted grid) or by bisection."""
+    last = breaks.size - 1
+    value = np.empty(t.size)
+    real = np.empty(poles.size, dtype=np.bool_)
+    for s in range(poles.size):
+        real[s] = poles[s].imag == 0.0
+    segment = 0
+    for k in range(t.size):
+        x = t[k]
+        if not (breaks[segment] <= x and (segment == last or x < breaks[segment + 1])):
+            segment = min(max(np.searchsorted(breaks, x, side="right") - 1, 0), last)
+        tau = x - breaks[segment]
+        if tau < 0.0:
+            value[k] = 0.0
+            continue
+        total = forced[segment, forced.shape[1] - 1]
+        for p in range(forced.shape[1] - 2, -1, -1):
+            total = total * tau + forced[segment, p]
+        for s in range(poles.size):
+            if real[s]:
+                term = free[segment, s].real * np.exp(poles[s].real * tau)
+            else:
+                term = (free[segment, s] * np.exp(poles[s] * tau)).real
+            if powers[s]:
+                term *= tau ** powers[s]
+            total += term
+        value[k] = total
+    return value
 
 
 def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
@@ -145,85 +160,81 @@ def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
     forced = pf.direct * u
     state_poles, state_power, free_cols = [], [], []
     for pole, mult, residues, weight in zip(pf.poles, pf.multiplicity, pf.residues, pf.weight):
-        # Particular (polynomial) solution of each chain state, segment by segment.
-        chain = []
-        source = u.astype(complex)
-        for _ in range(mult):
-            source = _polynomial_particular(source, pole)
-            chain.append(source)
-        chain = np.stack(chain, axis=1)                             # (n_seg, m, deg + 1)
-        forced = forced + weight * np.einsum("j,sjp->sp", residues, chain).real
-
-        # Homogeneous amplitudes w_i = z_i(0) - z_p,i(0); z_0(0) = 0 (at rest).
-        start = chain[:, :, 0]                                      # z_p,i(0)
-        end = _polyval_ascending(chain[:-1], h[:, None])            # z_p,i(h_i)
-        phi = _jordan_exp(pole, mult, h)                           # (n_seg - 1, m, m)
-        jump = end - start[1:]
-        w = _linear_scan(phi, jump, -start[0])                      # (n_seg, m)
-        # Output of the chain's free response: sum_j r_j sum_{l<=j} tau^(j-l)/(j-l)! w_l
-        # = sum_p tau^p e^{l tau} beta_p, beta_p = sum_{j-l=p} r_j w_l / p!.
+        chain_forced, chain_free = _chain_response(u, h, complex(pole),
+                                                   np.asarray(residues, dtype=complex),
+                                                   float(weight))
+        forced = forced + chain_forced
         for p in range(mult):
-            beta = sum(residues[l + p] * w[:, l] for l in range(mult - p)) / factorial(p)
             state_poles.append(pole)
             state_power.append(p)
-            free_cols.append(weight * beta)
+            free_cols.append(chain_free[:, p])
     free = np.stack(free_cols, axis=1) if free_cols else np.zeros((n_seg, 0), complex)
     return TrackingError(breaks=breaks, forced=forced, poles=np.array(state_poles, complex),
                          chain_power=np.array(state_power, int), free=free,
                          offset=model.dc_gain * rest)
 
 
-def _polynomial_particular(source: np.ndarray, pole: complex) -> np.ndarray:
-    """Polynomial z with z' = pole z + source (both ascending powers, last axis)."""
-    out = np.zeros_like(source)
-    deg = source.shape[-1] - 1
-    nxt = np.zeros(source.shape[:-1], dtype=source.dtype)
-    for p in range(deg, -1, -1):
-        # (p+1) c_{p+1} = pole c_p + s_p
-        nxt = ((p + 1) * nxt - source[..., p]) / pole
-        out[..., p] = nxt
-    return out
+@numba.njit(cache=True, nogil=True)
+def _chain_response(u, h, pole, residues, weight):
+    """One pole's Jordan chain driven by the segment polynomials ``u`` (n_seg, deg + 1,
+    ascending powers; the last segment is the hold, ``h`` the lengths of the others).
 
-
-def _polyval_ascending(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
-    value = coef[..., -1]
-    for p in range(coef.shape[-1] - 2, -1, -1):
-        value = value * x + coef[..., p]
-    return value
-
-
-def _jordan_exp(pole: complex, mult: int, h: np.ndarray) -> np.ndarray:
-    """exp(J h) for the lower Jordan block (pole on the diagonal, ones below), per h."""
-    out = np.zeros((h.size, mult, mult), dtype=complex)
-    decay = np.exp(pole * h)
-    for j in range(mult):
-        for l in range(j + 1):
-            out[:, j, l] = decay * h ** (j - l) / factorial(j - l)
-    return out
-
-
-def _linear_scan(phi: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    """x_0 = x0, x_{i+1} = phi_i x_i + b_i for i = 0..n-1, as an associative scan.
-
-    phi: (n, m, m), b: (n, m). Returns (n + 1, m). Doubling (Hillis-Steele) keeps it vectorized;
-    products of the contractive phi_i cannot overflow.
+    Returns its real polynomial part of e, weight Re(sum_j r_j z_p,j) per segment, and the
+    free-response amplitudes weight beta_p (n_seg, m): e gets weight Re(beta_p tau^p e^(l tau)).
+    Per segment: the particular polynomial of each chain state (z' = l z + source), then the
+    homogeneous amplitudes w_i = z_i(0) - z_p,i(0), carried across the joint by the exact
+    chain exponential, w(next) = exp(J h) w + z_p(h) - z_p,next(0), from rest (z(0) = 0).
+    One pass over the segments: linear in their number.
     """
-    A = phi.copy()
-    B = b.copy()
-    n = B.shape[0]
-    step = 1
-    while step < n:
-        # Compose element i with element i - step: (A_i, B_i) o (A_{i-s}, B_{i-s}).
-        B_new = B.copy()
-        A_new = A.copy()
-        B_new[step:] = np.einsum("nij,nj->ni", A[step:], B[:-step]) + B[step:]
-        A_new[step:] = A[step:] @ A[:-step]
-        A, B = A_new, B_new
-        step *= 2
-    out = np.empty((n + 1, b.shape[1]), dtype=complex)
-    out[0] = x0
-    out[1:] = np.einsum("nij,j->ni", A, x0) + B
-    return out
+    n_seg, n_coef = u.shape
+    m = residues.size
+    forced = np.zeros((n_seg, n_coef))
+    free = np.empty((n_seg, m), dtype=np.complex128)
+    chain = np.empty((m, n_coef), dtype=np.complex128)
+    state = np.zeros(m, dtype=np.complex128)
+    carried = np.zeros(m, dtype=np.complex128)
+    inverse_factorial = np.ones(m)
+    for p in range(1, m):
+        inverse_factorial[p] = inverse_factorial[p - 1] / p
+    for i in range(n_seg):
+        for j in range(m):
+            following = 0j
+            for p in range(n_coef - 1, -1, -1):
+                source = u[i, p] if j == 0 else chain[j - 1, p]
+                # (p+1) c_{p+1} = pole c_p + s_p
+                following = ((p + 1) * following - source) / pole
+                chain[j, p] = following
+        for p in range(n_coef):
+            total = 0j
+            for j in range(m):
+                total += residues[j] * chain[j, p]
+            forced[i, p] = weight * total.real
+        if i == 0:
+            for j in range(m):
+                state[j] = -chain[j, 0]          # at rest: z(0) = 0
+        else:
+            hi = h[i - 1]
+            decay = np.exp(pole * hi)
+            for j in range(m - 1, -1, -1):       # exp(J h) is lower triangular
+                total = 0j
+                power = 1.0
+                for l in range(j, -1, -1):
+                    total += decay * power * inverse_factorial[j - l] * state[l]
+                    power *= hi
+                state[j] = total + carried[j] - chain[j, 0]
+        for p in range(m):
+            total = 0j
+            for l in range(m - p):
+                total += residues[l + p] * state[l]
+            free[i, p] = weight * total * inverse_factorial[p]
+        if i < n_seg - 1:
+            hi = h[i]
+            for j in range(m):                   # z_p(h) at the segment's end
+                value = chain[j, n_coef - 1]
+                for p in range(n_coef - 2, -1, -1):
+                    value = value * hi + chain[j, p]
+                carried[j] = value
+    return forced, free
 
 
 def _cluster_roots(roots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +291,8 @@ class AxisPrediction:
 
 def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorModel, ...], *,
                      tol_linear: float | None = None, tol_rotary: float | None = None,
-                     initial_knots: tuple | None = None) -> AxisPrediction:
+                     initial_knots: tuple | None = None,
+                     previous: tuple[np.ndarray, AxisPrediction] | None = None) -> AxisPrediction:
     """Fit each axis command (spec section 3) and predict its tracking error (section 4).
 
     Parameters
@@ -296,6 +308,10 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
     initial_knots : tuple of 5 int arrays, optional
         Knots to start each axis's fit from (``AxisPrediction.fits.knot_indices`` of a
         prediction of a similar command, see :func:`fit_min_jerk`).
+    previous : (q, AxisPrediction), optional
+        Commands and the prediction of an earlier call with the same ``t``, models and
+        tolerances: an axis whose command is identical to its command there is taken from it
+        (a compensation pass changes the rotary axes once and then only the linear ones).
     """
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -303,6 +319,8 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
     tol_rotary = DEFAULT_TOL_ROTARY if tol_rotary is None else tol_rotary
 
     def axis(i):
+        if previous is not None and np.array_equal(previous[0][:, i], q[:, i]):
+            return previous[1].fits[i], previous[1].errors[i]
         fit = fit_min_jerk(t, q[:, i], tol_rotary if AXES[i] in ROTARY_AXES else tol_linear,
                            name=AXES[i],
                            initial_knots=None if initial_knots is None else initial_knots[i])
