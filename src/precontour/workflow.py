@@ -22,12 +22,12 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .compensation.pieces import AT_ONCE_SAMPLES
+from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
                                          learn_within_limits)
 from .errors import InputError, MachineLimitError, notice
 from .machine.machine_file import Machine, load_machine
-from .prediction.contour import ContourErrors, ReferencePath, contour_errors
+from .prediction.contour import ContourErrors
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
@@ -323,8 +323,9 @@ def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory
                             q: np.ndarray) -> ContourErrors:
     machine_obj = load_machine(machine)
     q_act = realistic_actual(reference.t, machine_obj, controller)(q)
-    return contour_errors(ReferencePath.from_trajectory(reference), q_act,
-                          machine_obj.kinematics)
+    # in pieces above AT_ONCE_SAMPLES: whole-program reference curves of a long program
+    # were the peak of run's memory
+    return contour_errors_program(reference, q_act, machine_obj.kinematics)
 
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,

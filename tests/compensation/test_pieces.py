@@ -4,7 +4,7 @@ and the compensated commands by far less than the spline fit's tolerance (measur
 import numpy as np
 import pytest
 
-from precontour.compensation.pieces import (Piece, compensate_program, overlap_samples,
+from precontour.compensation.pieces import (Piece, compensate_program, contour_errors_program, overlap_samples,
                                             plan_pieces, predict_program,
                                             slowest_decay_rate)
 from precontour.trajectory.builtin_paths import builtin_path
@@ -69,6 +69,23 @@ def test_predicting_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine, 
         assert np.all(np.abs(cut.e - whole.e).max(axis=0) <= scale)
         assert np.abs(cut.contour.tip - whole.contour.tip).max() <= 1e-6
         assert np.abs(cut.contour.orientation - whole.contour.orientation).max() <= 1e-9
+
+
+def test_contour_errors_in_pieces_are_those_of_the_whole(machine, back_and_forth):
+    # the actual motion of the realistic machine (friction, stick-slip at the turns)
+    from precontour.prediction.contour import ReferencePath
+    from precontour.simulation.virtual_machine import realistic_actual
+
+    traj = back_and_forth
+    q_act = realistic_actual(traj.t, machine, "pid-high")(traj.q)
+    whole = ReferencePath.from_trajectory(traj).errors(*machine.kinematics.forward(q_act))
+    for piece_samples in (1_000, 2_900):
+        cut = contour_errors_program(traj, q_act, machine.kinematics,
+                                     piece_samples=piece_samples, at_once_samples=0)
+        assert cut.tip.shape == whole.tip.shape
+        assert np.abs(cut.tip - whole.tip).max() <= 1e-9
+        assert np.abs(cut.orientation - whole.orientation).max() <= 1e-12
+        np.testing.assert_allclose(cut.tip_parameter, whole.tip_parameter, rtol=0, atol=1e-9)
 
 
 def test_compensating_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine,

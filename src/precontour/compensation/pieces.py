@@ -178,6 +178,27 @@ def predict_program(traj: Trajectory, models: tuple[LinearErrorModel, ...], kine
                              n_knots=tuple(int(k) for k in knots), pieces=pieces)
 
 
+def contour_errors_program(reference: Trajectory, q_act: np.ndarray, kinematics, *,
+                           piece_samples: int = PIECE_SAMPLES,
+                           at_once_samples: int = AT_ONCE_SAMPLES) -> ContourErrors:
+    """Contour errors of the actual axis positions ``q_act`` against ``reference`` (with its
+    P, O), at once up to ``at_once_samples`` samples, in overlapping pieces above: each
+    piece's reference curves and searches reach no further than the widest search window and
+    the splines' end effects, so the overlap (those two) leaves the kept samples unchanged."""
+    n = reference.n_samples
+    if n <= at_once_samples:
+        return ReferencePath.from_trajectory(reference).errors(*kinematics.forward(q_act))
+    overlap = int(ceil((MAX_WINDOW_FACTOR * DEFAULT_WINDOW + SPLINE_MARGIN) / reference.ts))
+    parts = []
+    for piece in plan_pieces(n, overlap, None, piece_samples, reference.ts):
+        part = _slice(reference, piece.start, piece.stop)
+        errors = ReferencePath.from_trajectory(part).errors(
+            *kinematics.forward(q_act[piece.start:piece.stop]))
+        parts.append(_kept(errors, slice(piece.keep_start - piece.start,
+                                         piece.keep_stop - piece.start)))
+    return _join(parts)
+
+
 def compensate_pieces(read, n_samples: int, ts: float, kinematics,
                       models: tuple[LinearErrorModel, ...], *,
                       piece_samples: int = PIECE_SAMPLES, **options):

@@ -31,6 +31,7 @@ from ..trajectory.retime import Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .idle_axes import hold_idle_axes
+from .pieces import compensate_program, predict_program
 from .precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                             CompensationResult, compensate, learning_step, predicted_actual)
 from .stops import LIMITED_SMOOTHING, MachineActual, learn_at_stops
@@ -120,7 +121,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     first_check = None
     if progress is not None:
         progress(1, f"compensate ({current.n_samples} samples)")
-    result = compensate(current, kinematics, models, **options)
+    result = compensate_program(current, kinematics, models, **options)
     q = result.trajectory.q
     kinks = []
     for round_ in range(1, max_rounds + 1):
@@ -166,7 +167,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             q = splice_recompensation(current, retimed.old_index, q, kinematics, models,
                                       passes=result.iterations, **options)
         else:
-            result = compensate(current, kinematics, models, **options)
+            result = compensate_program(current, kinematics, models, **options)
             q = result.trajectory.q
     # Slowing down no longer helps where a correction has a kink (its jerk does not fall when
     # the motion slows): there the commands go back to the planned ones, which keep the limits.
@@ -205,9 +206,7 @@ def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models
     kinks = check.stretch > KINK_STRETCH
     if not kinks.any():
         return q, []
-    tolerances = {key: options[key] for key in ("tol_linear", "tol_rotary") if key in options}
-    tracking = 2.0 * reference.q - predicted_actual(reference.t, reference.q, models,
-                                                    **tolerances)
+    tracking = reference.q + _predicted(reference, models, options).e
     return taper_corrections(tracking, q, kinks, reference.ts)
 
 
@@ -367,12 +366,19 @@ def _result_for(reference: Trajectory, q: np.ndarray, last: CompensationResult, 
                 models, options) -> CompensationResult:
     """The CompensationResult of spliced commands: predicted contour errors before and after
     on the whole re-timed reference."""
-    path = ReferencePath.from_trajectory(reference)
-    tolerances = {key: options[key] for key in ("tol_linear", "tol_rotary") if key in options}
-    before = contour_errors(path, predicted_actual(reference.t, reference.q, models,
-                                                   **tolerances), kinematics)
-    after = contour_errors(path, predicted_actual(reference.t, q, models, **tolerances),
-                           kinematics)
+    before = _predicted(reference, models, options, kinematics).contour
+    after = _predicted(reference.with_axes(q), models, options, kinematics).contour
     return CompensationResult(trajectory=reference.with_axes(q), before=before, after=after,
                               iterations=last.iterations,
                               history=(before.summary(), after.summary()), method=last.method)
+
+
+def _predicted(traj: Trajectory, models, options, kinematics=None):
+    """Prediction of ``traj`` at the compensation's fit tolerances, whole up to
+    :data:`~.pieces.AT_ONCE_SAMPLES` samples and in overlapping pieces above, so that a long
+    program's re-timing rounds stay in bounded memory (with ``kinematics``, also its contour
+    errors)."""
+    return predict_program(
+        traj if kinematics is not None else Trajectory(t=traj.t, q=traj.q), models, kinematics,
+        tol_linear=options.get("tol_linear") or COMPENSATION_TOL_LINEAR,
+        tol_rotary=options.get("tol_rotary") or COMPENSATION_TOL_ROTARY)
