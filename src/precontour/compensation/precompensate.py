@@ -66,12 +66,27 @@ class CompensationResult:
     learning: LearningReport | None = None
 
 
+def compensation_tolerances(tol_linear: float | None = None,
+                            tol_rotary: float | None = None) -> tuple[float, float]:
+    """The spline fit tolerances a compensation uses: those given, else
+    :data:`COMPENSATION_TOL_LINEAR`, :data:`COMPENSATION_TOL_ROTARY`."""
+    return (COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear,
+            COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
+
+
+def axis_tolerances(tol_linear: float | None = None,
+                    tol_rotary: float | None = None) -> np.ndarray:
+    """:func:`compensation_tolerances` per axis X, Y, Z, A, C, shape (5,)."""
+    linear, rotary = compensation_tolerances(tol_linear, tol_rotary)
+    return np.array([linear] * 3 + [rotary] * 2)
+
+
 def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
                      tol_rotary=None) -> np.ndarray:
     """Predicted actual axis positions q - e(q) (spec section 6 step 1), shape (N, 5)."""
-    prediction = predict_tracking(traj_t, q, models,
-                                  tol_linear=COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear,
-                                  tol_rotary=COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
+    tol_linear, tol_rotary = compensation_tolerances(tol_linear, tol_rotary)
+    prediction = predict_tracking(traj_t, q, models, tol_linear=tol_linear,
+                                  tol_rotary=tol_rotary)
     return q - prediction(traj_t)
 
 
@@ -135,6 +150,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         raise ValueError(f"min_passes must be within 0..{iterations}, got {min_passes}")
     reference = reference or ReferencePath.from_trajectory(traj)
     t = traj.t
+    tol_linear, tol_rotary = compensation_tolerances(tol_linear, tol_rotary)
 
     # Each fit starts from the knots of the previous one: a corrected command needs the
     # knots of the command it corrects and more (issue 11: the corrected commands took three
@@ -146,8 +162,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     def predict(q):
         nonlocal knots, previous
         prediction = predict_tracking(t, q, models, initial_knots=knots, previous=previous,
-                                      tol_linear=COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear,
-                                      tol_rotary=COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
+                                      tol_linear=tol_linear, tol_rotary=tol_rotary)
         knots = prediction.fits.knot_indices
         previous = (q, prediction)
         return q - prediction(t)
@@ -183,9 +198,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         else:
             break
     _, q_best, after_best, passes = best
-    idle_tolerance = np.array(
-        [COMPENSATION_TOL_LINEAR if tol_linear is None else tol_linear] * 3
-        + [COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary] * 2)
+    idle_tolerance = axis_tolerances(tol_linear, tol_rotary)
 
     def hold(q):
         return hold_idle_axes(traj.q, q, idle_tolerance) if hold_idle else q

@@ -32,8 +32,8 @@ from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
-from .precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
-                            CompensationResult, compensate, learning_step, predicted_actual)
+from .precompensate import (CompensationResult, axis_tolerances, compensate,
+                            compensation_tolerances, learning_step, predicted_actual)
 from .stops import LIMITED_SMOOTHING, MachineActual, learn_at_stops
 
 #: Re-timing rounds before giving up.
@@ -230,7 +230,7 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
         return check_limits(q, ts, limits, t0=t0).ok
 
     q_start = limited.result.trajectory.q
-    idle_tolerance = np.array([COMPENSATION_TOL_LINEAR] * 3 + [COMPENSATION_TOL_ROTARY] * 2)
+    idle_tolerance = axis_tolerances()
 
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)
@@ -378,7 +378,8 @@ def _predicted(traj: Trajectory, models, options, kinematics=None):
     :data:`~.pieces.AT_ONCE_SAMPLES` samples and in overlapping pieces above, so that a long
     program's re-timing rounds stay in bounded memory (with ``kinematics``, also its contour
     errors)."""
+    tol_linear, tol_rotary = compensation_tolerances(options.get("tol_linear"),
+                                                     options.get("tol_rotary"))
     return predict_program(
         traj if kinematics is not None else Trajectory(t=traj.t, q=traj.q), models, kinematics,
-        tol_linear=options.get("tol_linear") or COMPENSATION_TOL_LINEAR,
-        tol_rotary=options.get("tol_rotary") or COMPENSATION_TOL_ROTARY)
+        tol_linear=tol_linear, tol_rotary=tol_rotary)

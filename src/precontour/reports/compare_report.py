@@ -316,13 +316,15 @@ def _figures(result: "CompareResult") -> list[tuple[str, str, bytes]]:
                     "pre-compensation (like the paper's Fig. 11).",
                     figure_png(plot_contour_comparison(
                         t, curves, title=f"contour errors, {where}: sliding mode vs P-PI"))))
-        for error in result.model_errors[:1]:
-            def run(name, kind):
+        if result.model_errors:
+            error = result.model_errors[0]
+
+            def off_model(name, kind):
                 return result.model_error_runs[(name, kind, error)].contour
-            curves = ([(f"sliding mode ({result.sliding})", run(result.sliding, "none"),
+            curves = ([(f"sliding mode ({result.sliding})", off_model(result.sliding, "none"),
                         COLORS["sliding"]),
-                       (f"P-PI ({result.ppi})", run(result.ppi, "none"), COLORS["none"]),
-                       ("P-PI + contour pre-comp.", run(result.ppi, "contour"),
+                       (f"P-PI ({result.ppi})", off_model(result.ppi, "none"), COLORS["none"]),
+                       ("P-PI + contour pre-comp.", off_model(result.ppi, "contour"),
                         COLORS["contour"])])
             out.append(("fig11:model-error", "Fig. 11 again on a plant whose J and B are "
                         f"{100 * error:+g} % off the model both controllers use (claim a2; "
