@@ -227,3 +227,39 @@ def _unwrap_path(c_raw: np.ndarray, defined: np.ndarray, period: float,
     if index.size == c_raw.size:
         return c_defined
     return np.interp(np.arange(c_raw.size), index, c_defined)
+
+
+def read_direction(table, key: str) -> float:
+    """A rotary axis direction from the machine file: +1 or -1."""
+    value = table.get_float(key)
+    if value not in (1.0, -1.0):
+        raise table.error(key, f"must be +1 or -1 (the axis's sense of rotation), got {value:g}")
+    return value
+
+
+class LinuxcncTrunnion(TrunnionKinematics):
+    """Mixin of LinuxCNC's trunnion geometries (``xyzac-trt-kins``, ``xyzbc-trt-kins``): a
+    subclass has the fields ``x_rot_point``, ``y_rot_point``, ``z_rot_point`` (the rotary
+    centre) and those named by ``_GEOMETRY_KEYS`` (read from the machine file as they are) and
+    ``_DIRECTION_KEYS`` (tilt, turn: +1 or -1)."""
+
+    _GEOMETRY_KEYS: tuple[str, ...] = ()
+    _DIRECTION_KEYS: tuple[str, str] = ("a_direction", "c_direction")
+
+    @classmethod
+    def from_table(cls, table):
+        geometry = {key: table.get_float(key) for key in cls._GEOMETRY_KEYS}
+        directions = {key: read_direction(table, key) for key in cls._DIRECTION_KEYS}
+        return cls(**geometry, **directions)
+
+    @property
+    def tilt_direction(self) -> float:
+        return getattr(self, self._DIRECTION_KEYS[0])
+
+    @property
+    def turn_direction(self) -> float:
+        return getattr(self, self._DIRECTION_KEYS[1])
+
+    @property
+    def _rot_point(self) -> np.ndarray:
+        return np.array([self.x_rot_point, self.y_rot_point, self.z_rot_point])

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._trunnion import (TrunnionKinematics, rotary_pair, tilt_x_jacobian, tilt_x_orientation,
+from ._trunnion import (LinuxcncTrunnion, rotary_pair, tilt_x_jacobian, tilt_x_orientation,
                         tilt_x_turn)
 
 #: Machine-file keys of the geometry, in the order of :class:`XYZACTrunnion`'s fields.
@@ -48,16 +48,8 @@ GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "
                                   "z_offset", "tool_offset")
 
 
-def read_direction(table, key: str) -> float:
-    """A rotary axis direction from the machine file: +1 or -1."""
-    value = table.get_float(key)
-    if value not in (1.0, -1.0):
-        raise table.error(key, f"must be +1 or -1 (the axis's sense of rotation), got {value:g}")
-    return value
-
-
 @dataclass(frozen=True)
-class XYZACTrunnion(TrunnionKinematics):
+class XYZACTrunnion(LinuxcncTrunnion):
     """LinuxCNC ``xyzac-trt-kins`` geometry (see the module docstring); lengths in mm,
     directions +1/-1, ``a_min``/``a_max`` the A travel in rad (``None``: free)."""
 
@@ -77,24 +69,8 @@ class XYZACTrunnion(TrunnionKinematics):
     _physical_orientation = staticmethod(tilt_x_orientation)
     _physical_jacobian = staticmethod(tilt_x_jacobian)
     _physical_turn = staticmethod(tilt_x_turn)
-
-    @classmethod
-    def from_table(cls, table) -> "XYZACTrunnion":
-        geometry = {key: table.get_float(key) for key in GEOMETRY_KEYS}
-        return cls(**geometry, a_direction=read_direction(table, "a_direction"),
-                   c_direction=read_direction(table, "c_direction"))
-
-    @property
-    def tilt_direction(self) -> float:
-        return self.a_direction
-
-    @property
-    def turn_direction(self) -> float:
-        return self.c_direction
-
-    @property
-    def _rot_point(self) -> np.ndarray:
-        return np.array([self.x_rot_point, self.y_rot_point, self.z_rot_point])
+    _GEOMETRY_KEYS = GEOMETRY_KEYS
+    _DIRECTION_KEYS = ("a_direction", "c_direction")
 
     def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Direct kinematics: axis positions ``q[..., 5]`` (mm, rad) -> tool tip ``P[..., 3]``

@@ -37,9 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._trunnion import (TrunnionKinematics, rotary_pair, tilt_y_jacobian, tilt_y_orientation,
+from ._trunnion import (LinuxcncTrunnion, rotary_pair, tilt_y_jacobian, tilt_y_orientation,
                         tilt_y_turn)
-from .xyzac_trt import read_direction
 
 #: Machine-file keys of the geometry, in the order of :class:`XYZBCTrunnion`'s fields.
 GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "x_offset",
@@ -47,7 +46,7 @@ GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "
 
 
 @dataclass(frozen=True)
-class XYZBCTrunnion(TrunnionKinematics):
+class XYZBCTrunnion(LinuxcncTrunnion):
     """LinuxCNC ``xyzbc-trt-kins`` geometry (see the module docstring); lengths in mm,
     directions +1/-1, ``b_min``/``b_max`` the B travel in rad (``None``: free)."""
 
@@ -67,24 +66,8 @@ class XYZBCTrunnion(TrunnionKinematics):
     _physical_orientation = staticmethod(tilt_y_orientation)
     _physical_jacobian = staticmethod(tilt_y_jacobian)
     _physical_turn = staticmethod(tilt_y_turn)
-
-    @classmethod
-    def from_table(cls, table) -> "XYZBCTrunnion":
-        geometry = {key: table.get_float(key) for key in GEOMETRY_KEYS}
-        return cls(**geometry, b_direction=read_direction(table, "b_direction"),
-                   c_direction=read_direction(table, "c_direction"))
-
-    @property
-    def tilt_direction(self) -> float:
-        return self.b_direction
-
-    @property
-    def turn_direction(self) -> float:
-        return self.c_direction
-
-    @property
-    def _rot_point(self) -> np.ndarray:
-        return np.array([self.x_rot_point, self.y_rot_point, self.z_rot_point])
+    _GEOMETRY_KEYS = GEOMETRY_KEYS
+    _DIRECTION_KEYS = ("b_direction", "c_direction")
 
     def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Direct kinematics: axis positions ``q[..., 5]`` = X, Y, Z, B, C (mm, rad) -> tool
