@@ -9,8 +9,9 @@ import precontour
 
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
-STAGES = ("errors", "files", "machine", "toolpath", "trajectory", "tables", "prediction",
-          "compensation", "simulation", "identification", "workflow", "reports", "cli")
+STAGES = ("errors", "files", "piecewise", "machine", "toolpath", "trajectory", "tables",
+          "prediction", "compensation", "simulation", "identification", "workflow", "reports",
+          "cli")
 
 
 def _module_name(path: Path) -> str:

@@ -289,3 +289,18 @@ def test_only_negative_tilt_allowed():
 def test_rotary_pair_rejects_other_shapes():
     with pytest.raises(ValueError, match="shape"):
         XYZAC_SIM.orientation(np.zeros((4, 3)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(steps=st.lists(st.floats(-7.0, 7.0), min_size=1, max_size=60),
+       start=st.floats(-4.0, 4.0), half_turns=st.booleans(), wrap=st.booleans())
+@example(steps=[np.pi / 2, -np.pi / 2, np.pi, -np.pi], start=0.0, half_turns=True, wrap=False)
+def test_path_unwrap_is_numpys_to_the_bit(steps, start, half_turns, wrap):
+    """The compiled unwrap of the path inverse gives numpy.unwrap's every bit, steps of
+    exactly half a period included (numpy's tie rule)."""
+    from precontour.machine.kinematics._trunnion import _unwrap
+    c = start + np.cumsum([0.0] + steps)
+    if wrap:
+        c = np.arctan2(np.sin(c), np.cos(c))
+    period = np.pi if half_turns else 2.0 * np.pi
+    np.testing.assert_array_equal(_unwrap(c, period), np.unwrap(c, period=period))

@@ -136,3 +136,112 @@ def test_c_jump_too_close_to_vertical_is_refused(machine):
     O /= np.linalg.norm(O, axis=1)[:, None]
     with pytest.raises(PrecontourError, match="axis C jumps by .* too close to A = 0"):
         plan_feed(fit_path(P, O), machine)
+
+
+def test_erode_matches_brute_force():
+    """Each point's value reaches the points within its band's speed * reach (speed rounded
+    up to a power-of-two fraction of the fastest), checked point by point."""
+    from precontour.trajectory.feedplan import _erode
+    rng = np.random.default_rng(5)
+    for trial in range(40):
+        n = int(rng.integers(1, 300))
+        speed = rng.uniform(0.0, 100.0, n) * (rng.random(n) < 0.9)
+        values = rng.normal(size=n)
+        reach, h = rng.uniform(0.001, 0.2), rng.uniform(0.01, 0.5)
+        expected = values.copy()
+        moving = speed[speed > 0]
+        if moving.size:
+            fastest = moving.max()
+            for k in np.flatnonzero(speed > 0):
+                level = fastest
+                while speed[k] <= 0.5 * level:
+                    level *= 0.5
+                width = int(np.ceil(level * reach / h))
+                lo, hi = max(0, k - width), min(n, k + width + 1)
+                expected[lo:hi] = np.minimum(expected[lo:hi], values[k])
+        np.testing.assert_array_equal(_erode(values, speed, reach, h), expected)
+
+
+def _violation_reference(s, P, q, ts, feed_here, lim):
+    """The check's ratios with numpy: each difference folded onto the samples it touches."""
+    ratio = np.zeros(s.size - 2)
+
+    def fold(values, limit, order, offset):
+        r = ((np.abs(values) / limit) ** (1.0 / order)).reshape(values.shape[0], -1).max(axis=1)
+        np.maximum.at(ratio, np.clip(np.arange(r.size) + offset, 0, ratio.size - 1), r)
+
+    vP = np.linalg.norm(np.diff(P, axis=0), axis=1) / ts
+    for offset in (-1, 0):
+        fold(vP / np.minimum(feed_here[:-1], feed_here[1:]), 1.0, 1, offset)
+        fold(np.diff(s) / ts, lim.feed, 1, offset)
+        fold(np.diff(q, axis=0) / ts / lim.v, 1.0, 1, offset)
+    fold(np.linalg.norm(np.diff(P, 2, axis=0), axis=1) / ts**2, lim.acceleration, 2, 0)
+    fold(np.diff(s, 3) / ts**3, lim.jerk, 3, 0)
+    fold(np.diff(q, 2, axis=0) / ts**2 / lim.a, 1.0, 2, 0)
+    fold(np.diff(q, 3, axis=0) / ts**3 / lim.j, 1.0, 3, 0)
+    fold(np.diff(q, 3, axis=0) / ts**3 / lim.j, 1.0, 3, 1)
+    return ratio
+
+
+def test_violation_ratios_match_numpy(machine):
+    from precontour.trajectory.feedplan import _Limits, _violation
+    rng = np.random.default_rng(2)
+    n = 500
+    s = np.cumsum(rng.uniform(0.0, 0.12, n))
+    P = np.cumsum(rng.normal(scale=0.05, size=(n, 3)), axis=0)
+    q = np.cumsum(rng.normal(scale=0.05, size=(n, 5)), axis=0)
+    s_grid = np.linspace(0.0, s[-1] + 1.0, 400)
+    feed_of_s = rng.uniform(20.0, 100.0, s_grid.size)
+    lim = _Limits(100.0, 2000.0, 50000.0, *axis_limits(machine))
+    ratio = _violation(s, P, q, TS, feed_of_s, s_grid, lim)
+    feed_here = feed_of_s[np.clip(np.rint(s / s_grid[1]).astype(int), 0, s_grid.size - 1)]
+    np.testing.assert_allclose(ratio, _violation_reference(s, P, q, TS, feed_here, lim),
+                               rtol=1e-14)
+    assert ratio.max() > 1.0
+
+
+def test_limit_curves_match_numpy_gradients(machine):
+    """The compiled limit curves take the axes' derivatives as numpy.gradient would."""
+    from precontour.trajectory.feedplan import (CURVATURE_SHARE, MARGIN, _acceleration_limit,
+                                                _first_jump, _speed_limit)
+    rng = np.random.default_rng(4)
+    n, h = 700, 0.05
+    q = np.cumsum(np.cumsum(rng.normal(scale=1e-3, size=(n, 5)), axis=0), axis=0)
+    q[:, 2] = 1.0                                   # an axis that does not move
+    dP, ddP = rng.uniform(0.5, 1.0, n), rng.uniform(0.0, 0.1, n)
+    feed_of_s = rng.uniform(20.0, 100.0, n)
+    v, a, j = axis_limits(machine)
+    cap = _speed_limit(dP, ddP, q, h, feed_of_s, 100.0, 2000.0, v, a, j, MARGIN,
+                       CURVATURE_SHARE)
+    dq = np.abs(np.gradient(q, h, axis=0))
+    ddq = np.abs(np.gradient(np.gradient(q, h, axis=0), h, axis=0))
+    dddq = np.abs(np.gradient(np.gradient(np.gradient(q, h, axis=0), h, axis=0), h, axis=0))
+    m, c = MARGIN, CURVATURE_SHARE
+    with np.errstate(divide="ignore", invalid="ignore"):
+        expected = np.minimum.reduce([
+            np.full(n, 100.0), feed_of_s / dP, np.sqrt(c * m * 2000.0 / ddP),
+            np.min(m * v / dq, axis=1), np.min(np.sqrt(c * m * a / ddq), axis=1),
+            np.min(np.cbrt(c * m * j / dddq), axis=1)])
+        np.testing.assert_allclose(cap, expected, rtol=1e-14)
+        left = np.where(np.isnan((m * a - ddq * cap[:, None] ** 2) / dq), np.inf,
+                        (m * a - ddq * cap[:, None] ** 2) / dq)
+        expected_a = np.minimum(m * 2000.0 - ddP * cap**2, left.min(axis=1))
+    np.testing.assert_allclose(_acceleration_limit(ddP, q, h, cap, 2000.0, a, m), expected_a,
+                               rtol=1e-14)
+    q[300, 4] += 2.5                                # C jumps by 2.5 rad at one grid point
+    row, axis, step = _first_jump(q, h, 3, 1.0)
+    assert (row, axis) == (299, 4) and step == pytest.approx(
+        abs(np.gradient(q[:, 4], h)[299]) * h)
+
+
+def test_grid_points_do_not_depend_on_round_off():
+    """A short path gets 2000 steps whether or not L / (L / 2000) rounds above 2000 (this
+    length's does, which once gave the built-in `fan` one grid point more)."""
+    from precontour.trajectory.feedplan import grid_points
+    length = 81.98218436861193
+    assert length / (length / 2000.0) > 2000.0
+    assert grid_points(length, 100.0, TS) == 2001
+    assert grid_points(1000.0, 100.0, TS) == 20001
+    assert grid_points(1000.0, 100.0, TS, grid_step=0.3) == 3335
+    with pytest.raises(ValueError, match="grid_step"):
+        grid_points(1000.0, 100.0, TS, grid_step=-1.0)

@@ -19,6 +19,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 
 from ..errors import InputError
 from ..machine.kinematics import angle_between
+from ..piecewise import bspline_pieces
 from ..trajectory.sampled import Trajectory
 
 #: The closest point is searched within DEFAULT_WINDOW seconds of the time-corresponding
@@ -147,7 +148,7 @@ class ReferencePath:
         if not (self.tip.k == self.orientation.k
                 and np.array_equal(self.tip.t, self.orientation.t)):
             raise ValueError("the tip and orientation curves must share their knots and degree")
-        return _pieces(self.tip, np.concatenate([self.tip.c, self.orientation.c], axis=1))
+        return bspline_pieces(self.tip, np.concatenate([self.tip.c, self.orientation.c], axis=1))
 
     @cached_property
     def _tip_arrays(self):
@@ -226,81 +227,12 @@ def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
     return reference.errors(P_act, O_act, t, window, window_length)
 
 
-def _pieces(curve: BSpline, control: np.ndarray):
-    """The polynomial pieces of a B-spline with the knots and degree of ``curve`` and the
-    control points ``control``: breaks and Taylor coefficients at each break, highest power
-    first, shape (pieces, k + 1, dims)."""
-    knots = np.ascontiguousarray(curve.t, dtype=float)
-    distinct = np.concatenate([[True], np.diff(knots) > 0])
-    breaks = knots[distinct]
-    # the span of each piece: the last copy of its left break, knots[span] <= x < knots[span+1]
-    spans = np.flatnonzero(distinct)[1:] - 1
-    coef = _taylor_coefficients(knots, np.ascontiguousarray(control, dtype=float), curve.k,
-                                breaks, spans)
-    return breaks, coef
-
-
 def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
     """What the compiled search needs of a reference curve: the pieces of both curves
     (:attr:`ReferencePath._pieces`; the search takes its curve's three of their six
     dimensions), the samples and their cumulative chord length."""
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
     return breaks, coef, np.ascontiguousarray(samples), chord
-
-
-@numba.njit(cache=True, parallel=True)
-def _taylor_coefficients(knots, control, degree, breaks, spans):
-    """Taylor coefficients / m! of a B-spline at the left end of each piece, highest power
-    first: the derivatives' control points by differencing (Piegl & Tiller, The NURBS Book,
-    A3.3) on the bases of every degree from one Cox-de Boor triangle (A2.2)."""
-    dims = control.shape[1]
-    pieces = breaks.size - 1
-    coef = np.empty((pieces, degree + 1, dims))
-    for chunk in numba.prange((pieces + _CHUNK - 1) // _CHUNK):
-        basis = np.zeros((degree + 1, degree + 1))   # basis[q, r] = N_{span-q+r, q}(x)
-        left = np.zeros(degree + 1)
-        right = np.zeros(degree + 1)
-        points = np.zeros((degree + 1, degree + 1, dims))
-        for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
-            _taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
-                                    right, points, coef, j)
-    return coef
-
-
-@numba.njit(cache=True, inline="always")
-def _taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out,
-                            piece):
-    """Taylor coefficients / m! at x (see _taylor_coefficients), into out[piece, degree - m]
-    (scalar loops throughout: no array views per piece)."""
-    dims = control.shape[1]
-    basis[0, 0] = 1.0
-    for q in range(1, degree + 1):
-        left[q] = x - knots[span + 1 - q]
-        right[q] = knots[span + q] - x
-        saved = 0.0
-        for r in range(q):
-            temp = basis[q - 1, r] / (right[r + 1] + left[q - r])
-            basis[q, r] = saved + right[r + 1] * temp
-            saved = left[q - r] * temp
-        basis[q, q] = saved
-    first = span - degree
-    for i in range(degree + 1):
-        for d in range(dims):
-            points[0, i, d] = control[first + i, d]
-    factorial = 1.0
-    for m in range(degree + 1):
-        if m > 0:
-            factorial *= m
-            for i in range(degree + 1 - m):
-                scale = (degree - m + 1) / (knots[first + i + degree + 1]
-                                            - knots[first + i + m])
-                for d in range(dims):
-                    points[m, i, d] = scale * (points[m - 1, i + 1, d] - points[m - 1, i, d])
-        for d in range(dims):
-            total = 0.0
-            for i in range(degree + 1 - m):
-                total += basis[degree - m, i] * points[m, i, d]
-            out[piece, degree - m, d] = total / factorial
 
 
 @numba.njit(cache=True, inline="always")

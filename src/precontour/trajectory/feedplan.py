@@ -3,7 +3,8 @@
 The profile starts and stops at rest, is jerk limited (continuous acceleration), keeps the tool
 tip speed below the programmed and maximum feed, the tip acceleration below a limit, and every
 axis (after inverse kinematics) below its velocity, acceleration and jerk limits. It is built
-in four vectorized stages, the classic CNC way:
+in four stages, the classic CNC way, each one pass over the grid or the samples (numpy, or
+compiled loops where a stage would otherwise make a dozen array passes):
 
 1. A velocity limit curve v_lim(s) on a uniform s grid, from the feed, the tip curvature and
    each axis's derivatives dq/ds, d2q/ds2, d3q/ds3 (finite differences of the inverse
@@ -26,15 +27,15 @@ in four vectorized stages, the classic CNC way:
 Why not a library: TOPP-RA (time-optimal path parameterization) handles velocity and
 acceleration constraints but not jerk, and its output would still need smoothing; Ruckig
 plans jerk-limited point-to-point motions and cannot follow a prescribed path. The method
-here is linear in the number of grid points and samples and has no Python loop over them.
+here is linear in the number of grid points and samples and has no interpreted loop over them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 
 from ..machine.drives import AXES
 from ..errors import PrecontourError, ToolPathError, plain
@@ -159,23 +160,21 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     v_ax, a_ax, j_ax = axis_limits(machine)
     lim = _Limits(feed, acceleration, jerk, v_ax, a_ax, j_ax)
     L = path.length
-    if grid_step is None:
-        grid_step = min(feed * ts / 2.0, L / 2000.0)
-    elif not (np.isfinite(grid_step) and grid_step > 0):
-        raise ValueError(f"grid_step must be positive and finite, got {plain(grid_step)!r}")
-    n_grid = int(np.ceil(L / grid_step)) + 1
+    n_grid = grid_points(L, feed, ts, grid_step)
     s_grid = np.linspace(0.0, L, n_grid)
     h = s_grid[1] - s_grid[0]
 
     feed_of_s = _feed_on_grid(path, s_grid, programmed_feed, feed)
-    geometry = _grid_geometry(path, machine, s_grid, h)
+    geometry = _grid_geometry(path, machine, s_grid)
     n_filter = max(1, int(np.ceil(2.0 * acceleration / jerk / ts)))
     reach = 0.5 * n_filter * ts  # a limit is felt over the distance its speed covers in T/2
     _check_continuity(geometry, s_grid)
+    speed_cap = _speed_limit(*geometry, h, feed_of_s, lim.feed, lim.acceleration, lim.v, lim.a,
+                             lim.j, MARGIN, CURVATURE_SHARE)
 
     scale = np.ones(n_grid)
     for iteration in range(1, max_iterations + 1):
-        v_lim, a_lim = _limit_curves(geometry, feed_of_s, lim, scale, reach, h)
+        v_lim, a_lim = _limit_curves(geometry, speed_cap, lim, scale, reach, h)
         v = _acceleration_passes(v_lim, a_lim, h)
         s = _time_law(v, h, ts, n_filter, L, max_samples)
         P, O = path(s)
@@ -195,6 +194,19 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
         scale *= factor
     raise PrecontourError(f"feed planning did not meet the limits after {max_iterations} "
                           f"passes (worst ratio {worst:.6g}); lower the feed or the limits")
+
+
+def grid_points(length: float, feed: float, ts: float, grid_step: float | None = None) -> int:
+    """Points of the planning grid over a path ``length`` mm long: steps of ``grid_step``
+    mm, by default min(feed * ts / 2, length / 2000) (half a sample at full feed, and at
+    least 2000 steps)."""
+    if grid_step is None:
+        # counted without dividing the length by a step made from it: L / (L / 2000) can
+        # round to 2000 + 2e-13, which would add a step on some short paths and not others
+        return max(int(np.ceil(length / (feed * ts / 2.0))), 2000) + 1
+    if not (np.isfinite(grid_step) and grid_step > 0):
+        raise ValueError(f"grid_step must be positive and finite, got {plain(grid_step)!r}")
+    return int(np.ceil(length / grid_step)) + 1
 
 
 def _feed_on_grid(path, s_grid, programmed_feed, feed):
@@ -219,33 +231,101 @@ def _feed_on_grid(path, s_grid, programmed_feed, feed):
     return pf[seg]
 
 
-def _grid_geometry(path, machine, s_grid, h):
-    """Derivatives with respect to s of the tip (analytic) and the axes (finite differences
-    of the path-mode inverse kinematics) on the planning grid."""
-    P, O = path(s_grid)
-    dP = np.linalg.norm(path.tip(s_grid, 1), axis=1)
-    ddP = np.linalg.norm(path.tip(s_grid, 2), axis=1)
-    q = machine.kinematics.inverse(P, O)
-    dq = np.gradient(q, h, axis=0)
-    ddq = np.gradient(dq, h, axis=0)
-    dddq = np.gradient(ddq, h, axis=0)
-    return dP, ddP, np.abs(dq), np.abs(ddq), np.abs(dddq)
+def _grid_geometry(path, machine, s_grid):
+    """The tool tip's |P'| and |P''| (analytic) and the axes q (path-mode inverse
+    kinematics) on the planning grid. The axes' derivatives with respect to s are their
+    finite differences, :func:`numpy.gradient` applied up to three times, which the compiled
+    limit curves take where they need them (:func:`_slope_first` and the next two)."""
+    P, O, dP, ddP = path.sample(s_grid)
+    q = np.ascontiguousarray(machine.kinematics.inverse(P, O))
+    return dP, ddP, q
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_first(q, i, k, h):
+    """:func:`numpy.gradient` of column k of q at row i: central differences inside,
+    one-sided at the ends, the same operations as numpy's."""
+    last = q.shape[0] - 1
+    if i == 0:
+        return (q[1, k] - q[0, k]) / h
+    if i == last:
+        return (q[last, k] - q[last - 1, k]) / h
+    return (q[i + 1, k] - q[i - 1, k]) / (2.0 * h)
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_second(q, i, k, h):
+    """:func:`numpy.gradient` of :func:`_slope_first` at row i."""
+    last = q.shape[0] - 1
+    if i == 0:
+        return (_slope_first(q, 1, k, h) - _slope_first(q, 0, k, h)) / h
+    if i == last:
+        return (_slope_first(q, last, k, h) - _slope_first(q, last - 1, k, h)) / h
+    return (_slope_first(q, i + 1, k, h) - _slope_first(q, i - 1, k, h)) / (2.0 * h)
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_third(q, i, k, h):
+    """:func:`numpy.gradient` of :func:`_slope_second` at row i."""
+    last = q.shape[0] - 1
+    if i == 0:
+        return (_slope_second(q, 1, k, h) - _slope_second(q, 0, k, h)) / h
+    if i == last:
+        return (_slope_second(q, last, k, h) - _slope_second(q, last - 1, k, h)) / h
+    return (_slope_second(q, i + 1, k, h) - _slope_second(q, i - 1, k, h)) / (2.0 * h)
 
 
 def _erode(values, speed, reach, h):
     """Running minimum of ``values`` in which grid point k reaches the points within
-    ``speed[k] * reach`` of it (rounded up to a power-of-two speed band; one
-    :func:`scipy.ndimage.minimum_filter1d` per band, so the cost is O(N log(range))."""
-    out = np.array(values, dtype=float)
-    level = float(np.max(speed))
-    while level > 0:
+    ``speed[k] * reach`` of it (rounded up to a power-of-two speed band): per band, a
+    running minimum of fixed width (van Herk / Gil-Werman), so the cost is O(N log(range))."""
+    values = np.ascontiguousarray(values, dtype=float)
+    moving = speed[speed > 0]
+    if moving.size == 0:
+        return values.copy()
+    return _erode_bands(values, np.ascontiguousarray(speed, dtype=float), float(reach),
+                        float(h), float(np.max(moving)), float(np.min(moving)))
+
+
+@numba.njit(cache=True)
+def _erode_bands(values, speed, reach, h, fastest, slowest):
+    n = values.size
+    out = values.copy()
+    masked = np.empty(n)     # the band's values, inf elsewhere
+    prefix = np.empty(n)     # minimum of masked from the start of its block
+    suffix = np.empty(n)     # minimum of masked to the end of its block (or of the grid)
+    level = fastest
+    # Bands below the slowest speed are empty; the halving stops there (the width never drops
+    # below one point, so it would otherwise run on to the smallest float).
+    while level >= slowest:
         width = int(np.ceil(level * reach / h))
-        if width < 1:
-            break
-        band = (speed <= level) & (speed > 0.5 * level)
-        if band.any():
-            out = np.minimum(out, minimum_filter1d(np.where(band, values, np.inf),
-                                                   2 * width + 1, mode="nearest"))
+        block = 2 * width + 1
+        members = 0
+        place = 0
+        for i in range(n):
+            inside = speed[i] <= level and speed[i] > 0.5 * level
+            masked[i] = values[i] if inside else np.inf
+            members += inside
+            prefix[i] = masked[i] if place == 0 else min(prefix[i - 1], masked[i])
+            place = place + 1 if place + 1 < block else 0
+        if members:
+            for start in range(((n - 1) // block) * block, -1, -block):
+                end = min(start + block, n) - 1
+                suffix[end] = masked[end]
+                for i in range(end - 1, start - 1, -1):
+                    suffix[i] = min(suffix[i + 1], masked[i])
+            for j in range(n):
+                a = j - width
+                b = j + width
+                if a < 0:       # the window [0, b] lies in the first block
+                    window = prefix[min(b, n - 1)]
+                elif b < n:     # a full window spans at most two blocks
+                    window = min(suffix[a], prefix[b])
+                elif a // block == (n - 1) // block:
+                    window = suffix[a]
+                else:
+                    window = min(suffix[a], prefix[n - 1])
+                out[j] = min(out[j], window)
         level *= 0.5
     return out
 
@@ -255,40 +335,72 @@ def _check_continuity(geometry, s_grid):
     A-C trunnion's other pole (tool pointing down, A jumps) or so close to A = 0 that C
     turns by more than a radian within one grid step; no feed would make them feasible."""
     h = s_grid[1] - s_grid[0]
-    dq = geometry[2] * h
-    jump = dq[:, 3:] > 1.0
-    if jump.any():
-        k, axis = np.unravel_index(np.flatnonzero(jump.ravel())[0], jump.shape)
-        name = AXES[3 + axis]
+    k, axis, step = _first_jump(geometry[2], h, 3, 1.0)
+    if k >= 0:
+        name = AXES[axis]
         why = ("the orientation passes through a singular direction of the kinematics"
                if name == "A" else "the orientation passes too close to A = 0 (tool along "
                "the C axis) for C to follow; move the path off that direction or pass "
                "exactly through it")
-        raise PrecontourError(f"axis {name} jumps by {dq[k, 3 + axis]:.6g} rad within "
+        raise PrecontourError(f"axis {name} jumps by {step:.6g} rad within "
                               f"{h:.3g} mm near s = {s_grid[k]:.6g} mm of the path: {why}")
 
 
-def _limit_curves(geometry, feed_of_s, lim, scale, reach, h):
-    dP, ddP, dq, ddq, dddq = geometry
-    m, c = MARGIN, CURVATURE_SHARE
-    with np.errstate(divide="ignore"):
-        candidates = [
-            np.full(dP.shape, lim.feed),
-            feed_of_s / dP,
-            np.sqrt(c * m * lim.acceleration / ddP),
-            np.min(m * lim.v / dq, axis=1),
-            np.min(np.sqrt(c * m * lim.a / ddq), axis=1),
-            np.min(np.cbrt(c * m * lim.j / dddq), axis=1),
-        ]
-    v_lim = np.minimum.reduce(candidates) * scale
+@numba.njit(cache=True)
+def _first_jump(q, h, first_axis, limit):
+    """The first grid row and axis (from ``first_axis`` on) whose change over one grid step,
+    |dq/ds| h, exceeds ``limit``, and that change; (-1, -1, 0) if none."""
+    for i in range(q.shape[0]):
+        for k in range(first_axis, q.shape[1]):
+            step = abs(_slope_first(q, i, k, h)) * h
+            if step > limit:
+                return i, k, step
+    return -1, -1, 0.0
+
+
+def _limit_curves(geometry, speed_cap, lim, scale, reach, h):
+    dP, ddP, q = geometry
+    v_lim = speed_cap * scale
     v_lim = _erode(v_lim, v_lim, reach, h)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a_tip = m * lim.acceleration - ddP * v_lim**2
-        a_axes = np.min((m * lim.a - ddq * v_lim[:, None] ** 2) / dq, axis=1)
-    a_lim = np.minimum(a_tip, a_axes) * scale**2
+    a_lim = _acceleration_limit(ddP, q, h, v_lim, lim.acceleration, lim.a, MARGIN) * scale**2
     a_lim = _erode(a_lim, v_lim, reach, h)
     # The curvature share keeps a_lim >= (1 - c) m * limit > 0 wherever v_lim is unscaled.
-    return v_lim, np.maximum(a_lim, 1e-9 * m * lim.acceleration)
+    return v_lim, np.maximum(a_lim, 1e-9 * MARGIN * lim.acceleration)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _speed_limit(dP, ddP, q, h, feed_of_s, feed, acceleration, v, a, j, m, c):
+    """Stage 1: v_lim(s) before scaling, the least of the feed, tip curvature and axis
+    velocity, acceleration and jerk limits (a zero derivative sets no limit). The roots are
+    monotone, so each order's least bound is rooted once."""
+    out = np.empty(dP.size)
+    for i in numba.prange(dP.size):
+        first = min(feed, feed_of_s[i] / dP[i])
+        second = c * m * acceleration / ddP[i]
+        third = np.inf
+        for k in range(v.size):
+            first = min(first, m * v[k] / abs(_slope_first(q, i, k, h)))
+            second = min(second, c * m * a[k] / abs(_slope_second(q, i, k, h)))
+            third = min(third, c * m * j[k] / abs(_slope_third(q, i, k, h)))
+        out[i] = min(first, np.sqrt(second), np.cbrt(third))
+    return out
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _acceleration_limit(ddP, q, h, v_lim, acceleration, a, m):
+    """Stage 1: a_lim(s) before scaling, the tangential acceleration the tip and every axis
+    leave over at v_lim (an axis that does not move sets no limit)."""
+    out = np.empty(ddP.size)
+    for i in numba.prange(ddP.size):
+        v2 = v_lim[i] * v_lim[i]
+        best = m * acceleration - ddP[i] * v2
+        for k in range(a.size):
+            slope = abs(_slope_first(q, i, k, h))
+            left = (m * a[k] - abs(_slope_second(q, i, k, h)) * v2) / slope
+            if not np.isnan(left):
+                best = min(best, left)
+        out[i] = best
+    return out
 
 
 def _acceleration_passes(v_lim, a_lim, h):
@@ -327,28 +439,74 @@ def _time_law(v, h, ts, n_filter, L, max_samples):
 
 def _violation(s, P, q, ts, feed_of_s, s_grid, lim):
     """Per interior sample k (1..N-2), the largest time-scaling factor a limit asks for:
-    (|x| / limit)^(1/order) over all checked quantities x of derivative order 1-3."""
-    n = s.size
-    ratio = np.zeros(max(n - 2, 0))
-    if n < 4:
-        return ratio
+    (|x| / limit)^(1/order) over all checked quantities x of derivative order 1-3. A first
+    difference counts for both its samples, a second for its middle one, a third for its
+    two middle ones (the tangential jerk d3s/dt3 for its first middle one)."""
+    if s.size < 4:
+        return np.zeros(max(s.size - 2, 0))
     h_idx = np.clip(np.rint(s / s_grid[1]).astype(int), 0, s_grid.size - 1)
-    feed_here = feed_of_s[h_idx]
+    # s as a column, so that the difference helpers serve s, P and q alike
+    return _violation_ratios(s.reshape(-1, 1), np.ascontiguousarray(P),
+                             np.ascontiguousarray(q), ts, feed_of_s[h_idx], lim.feed,
+                             lim.acceleration, lim.jerk, lim.v, lim.a, lim.j)
 
-    def fold(values, limit, order, offset):
-        r = (np.abs(values) / limit) ** (1.0 / order)
-        r = r.reshape(r.shape[0], -1).max(axis=1)
-        # Assign a difference to the interior samples it touches.
-        np.maximum.at(ratio, np.clip(np.arange(r.size) + offset, 0, ratio.size - 1), r)
 
-    vP = np.linalg.norm(np.diff(P, axis=0), axis=1) / ts  # interval k..k+1
-    for offset in (-1, 0):
-        fold(vP / np.minimum(feed_here[:-1], feed_here[1:]), 1.0, 1, offset)
-        fold(np.diff(s) / ts, lim.feed, 1, offset)
-        fold(np.diff(q, axis=0) / ts / lim.v, 1.0, 1, offset)
-    fold(np.linalg.norm(np.diff(P, 2, axis=0), axis=1) / ts**2, lim.acceleration, 2, 0)
-    fold(np.diff(s, 3) / ts**3, lim.jerk, 3, 0)
-    fold(np.diff(q, 2, axis=0) / ts**2 / lim.a, 1.0, 2, 0)
-    fold(np.diff(q, 3, axis=0) / ts**3 / lim.j, 1.0, 3, 0)
-    fold(np.diff(q, 3, axis=0) / ts**3 / lim.j, 1.0, 3, 1)
+@numba.njit(cache=True, inline="always")
+def _second_difference(x, k, i):
+    """(x[k+2] - x[k+1]) - (x[k+1] - x[k]) in column i, as :func:`numpy.diff` rounds it."""
+    return (x[k + 2, i] - x[k + 1, i]) - (x[k + 1, i] - x[k, i])
+
+
+@numba.njit(cache=True, inline="always")
+def _third_difference(x, k, i):
+    """The third difference of column i at k..k+3, as :func:`numpy.diff` rounds it."""
+    return _second_difference(x, k + 1, i) - _second_difference(x, k, i)
+
+
+@numba.njit(cache=True, inline="always")
+def _first_ratio(s, P, q, k, ts, feed_here, feed, v):
+    """Largest ratio of the first differences over interval k..k+1."""
+    d0 = P[k + 1, 0] - P[k, 0]
+    d1 = P[k + 1, 1] - P[k, 1]
+    d2 = P[k + 1, 2] - P[k, 2]
+    r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / ts / min(feed_here[k], feed_here[k + 1])
+    r = max(r, abs(s[k + 1, 0] - s[k, 0]) / ts / feed)
+    for i in range(q.shape[1]):
+        r = max(r, abs((q[k + 1, i] - q[k, i]) / ts / v[i]))
+    return r
+
+
+@numba.njit(cache=True, inline="always")
+def _axis_jerk_ratio(q, k, ts3, j):
+    """Largest |third difference / ts^3 / limit| of the axes over samples k..k+3 (before
+    the cube root)."""
+    r = 0.0
+    for i in range(q.shape[1]):
+        r = max(r, abs(_third_difference(q, k, i) / ts3 / j[i]))
+    return r
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _violation_ratios(s, P, q, ts, feed_here, feed, acceleration, jerk, v, a, j):
+    # The roots are monotone, so each order's largest ratio is rooted once.
+    n = s.shape[0]
+    ratio = np.empty(n - 2)
+    ts2 = ts**2     # powers as Python rounds them (not ts * ts * ts)
+    ts3 = ts**3
+    for r in numba.prange(n - 2):     # interior sample r + 1
+        first = max(_first_ratio(s, P, q, r, ts, feed_here, feed, v),
+                    _first_ratio(s, P, q, r + 1, ts, feed_here, feed, v))
+        d0 = _second_difference(P, r, 0)
+        d1 = _second_difference(P, r, 1)
+        d2 = _second_difference(P, r, 2)
+        second = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / ts2 / acceleration
+        for i in range(q.shape[1]):
+            second = max(second, abs(_second_difference(q, r, i) / ts2 / a[i]))
+        third = 0.0
+        if r <= n - 4:
+            third = max(abs(_third_difference(s, r, 0)) / ts3 / jerk,
+                        _axis_jerk_ratio(q, r, ts3, j))
+        if r >= 1:
+            third = max(third, _axis_jerk_ratio(q, r - 1, ts3, j))
+        ratio[r] = max(first, np.sqrt(second), third ** (1.0 / 3.0))
     return ratio

@@ -9,21 +9,27 @@ to within a fraction (L_eq * dtheta/|dP|)^2 / 2 (about 0.05 % for a typical 0.03
 five-axis path); where the tip stands still while the tool turns (a pure rotation move), s keeps
 growing by L_eq per rad, so such moves never make the parameterization degenerate. The tip and
 the (unnormalized) orientation are interpolated by quintic not-a-knot B-splines
-(:func:`scipy.interpolate.make_interp_spline`, C4 at the knots) through every programmed point;
-the orientation is normalized on evaluation, which keeps it unit length and C3. The parameter
-comes from one pass of chord lengths followed by one re-parameterization with the combined
-length of the chord-length spline (5-point Gauss-Legendre per segment).
+(:func:`precontour.piecewise.interpolating_spline`, scipy's
+:func:`~scipy.interpolate.make_interp_spline` solved in pieces; C4 at the knots) through every
+programmed point; the orientation is normalized on evaluation, which keeps it unit length and
+C3. The parameter comes from one pass of chord lengths followed by one re-parameterization with
+the combined length of the chord-length spline (5-point Gauss-Legendre per segment). The splines
+are evaluated from their polynomial pieces (:mod:`precontour.piecewise`), compiled.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
+import numba
 import numpy as np
-from scipy.interpolate import BSpline, make_interp_spline
+from scipy.interpolate import BSpline
 
 from ..errors import InputError, ToolPathError, plain
 from ..machine.kinematics import angle_between, normalize_orientations
+from ..piecewise import (bspline_layout, bspline_pieces, derivative, evaluate,
+                         interpolating_spline, locate, taylor_coefficients_at)
 
 #: Equivalent length of one radian of tool rotation in the combined path parameter, mm/rad.
 L_EQ = 1.0
@@ -38,6 +44,8 @@ DUPLICATE_TOLERANCE = 1e-6
 MAX_ORIENTATION_STEP = np.pi / 2
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
+#: Segments per task of the compiled segment lengths.
+_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -69,23 +77,43 @@ class PathSpline:
         """Total combined length L (mm); s runs over [0, L]."""
         return float(self.s_points[-1])
 
+    @cached_property
+    def _pieces(self):
+        """Breaks and Taylor coefficients of both splines: tip in dims 0-2, orientation in
+        3-5 (:func:`fit_path` gives them the same knots)."""
+        return _both_pieces(self.tip_spline, self.orientation_spline)
+
     def tip(self, s, nu: int = 0) -> np.ndarray:
         """Tool tip P(s) (nu = 0) or its nu-th derivative with respect to s; shape
         ``np.shape(s) + (3,)``, mm/mm^nu."""
-        return self.tip_spline(s, nu)
+        return evaluate(*self._pieces, s, nu, slice(0, 3))
 
     def orientation(self, s, nu: int = 0) -> np.ndarray:
         """Unit orientation O(s) or its nu-th derivative (nu <= 3); shape
         ``np.shape(s) + (3,)``, 1/mm^nu."""
         if nu not in (0, 1, 2, 3):
             raise ValueError(f"orientation derivatives are available up to order 3, got {nu}")
-        derivs = [self.orientation_spline(s, k) for k in range(nu + 1)]
+        derivs = [evaluate(*self._pieces, s, k, slice(3, 6)) for k in range(nu + 1)]
         return _normalized_derivatives(derivs)[nu]
 
     def __call__(self, s, nu: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """``(P, O)`` or their nu-th derivatives at ``s``, as in :meth:`tip` and
         :meth:`orientation`."""
+        if nu == 0:
+            return self.sample(s, with_tip_derivatives=False)[:2]
         return self.tip(s, nu), self.orientation(s, nu)
+
+    def sample(self, s, with_tip_derivatives: bool = True):
+        """``(P, O, |P'|, |P''|)`` at ``s`` in one compiled pass (the feed planner's grid):
+        shapes ``np.shape(s) + (3,)`` twice, then ``np.shape(s)``; the last two are empty
+        without ``with_tip_derivatives``."""
+        x = np.asarray(s, dtype=float)
+        P, O, speed, bend = _sample(*self._pieces, np.ascontiguousarray(x.ravel()),
+                                    bool(with_tip_derivatives))
+        if not with_tip_derivatives:
+            return P.reshape(x.shape + (3,)), O.reshape(x.shape + (3,)), speed, bend
+        return (P.reshape(x.shape + (3,)), O.reshape(x.shape + (3,)), speed.reshape(x.shape),
+                bend.reshape(x.shape))
 
 
 def _normalized_derivatives(v: list[np.ndarray]) -> list[np.ndarray]:
@@ -169,15 +197,18 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
     if index.size < 2:
         raise ToolPathError(f"zero-length path: all {P.shape[0]} points have the same tool "
                             "tip and orientation", source=src)
-    P, O = P[index], O[index]
-    d_ang = angle_between(O[:-1], O[1:])
+    dropped = index.size < P.shape[0]
+    if dropped:
+        P, O = P[index], O[index]
+        d_ang = angle_between(O[:-1], O[1:])
     big = d_ang > MAX_ORIENTATION_STEP
     if big.any():
         i = int(np.flatnonzero(big)[0])
         raise ToolPathError(f"tool orientation turns by {d_ang[i]:.6g} rad from the previous "
                             f"point (at most {MAX_ORIENTATION_STEP:.6g}); insert points",
                             source=src, row=int(index[i + 1]) + 1, field="O")
-    chord = np.hypot(np.linalg.norm(np.diff(P, axis=0), axis=1), l_eq * d_ang)
+    if dropped:
+        chord = np.hypot(np.linalg.norm(np.diff(P, axis=0), axis=1), l_eq * d_ang)
 
     s = np.concatenate([[0.0], np.cumsum(chord)])
     tip, orient = _interpolate(s, P, O)
@@ -190,20 +221,106 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
                       point_index=index, l_eq=float(l_eq))
 
 
+def _both_pieces(tip: BSpline, orient: BSpline):
+    return bspline_pieces(tip, _joint_control(tip, orient))
+
+
+def _joint_control(tip: BSpline, orient: BSpline) -> np.ndarray:
+    """Control points of both splines side by side (tip 0-2, orientation 3-5)."""
+    if not (tip.k == orient.k and np.array_equal(tip.t, orient.t)):
+        raise ValueError("the tip and orientation splines must share their knots and degree")
+    return np.concatenate([tip.c, orient.c], axis=1)
+
+
 def fit_toolpath(toolpath, *, l_eq: float = L_EQ) -> PathSpline:
     """:func:`fit_path` of a :class:`precontour.toolpath.ToolPath`."""
     return fit_path(toolpath.P, toolpath.O, l_eq=l_eq, source=toolpath.source)
 
 
 def _interpolate(s: np.ndarray, P: np.ndarray, O: np.ndarray) -> tuple[BSpline, BSpline]:
-    k = min(5, s.size - 1)
-    return make_interp_spline(s, P, k=k), make_interp_spline(s, O, k=k)
+    # one interpolation of both: they share the collocation matrix and its factorization
+    both = interpolating_spline(s, np.concatenate([P, O], axis=1), k=min(5, s.size - 1))
+    # construct_fast: the knots are the interpolant's (BSpline() would check and sort them)
+    return tuple(BSpline.construct_fast(both.t, np.ascontiguousarray(both.c[:, part]), both.k)
+                 for part in (slice(0, 3), slice(3, 6)))
 
 
 def _segment_lengths(tip: BSpline, orient: BSpline, s: np.ndarray, l_eq: float) -> np.ndarray:
-    h = np.diff(s)
-    u = s[:-1, None] + 0.5 * h[:, None] * (_GAUSS_X + 1.0)
-    dP = tip(u, 1)
-    dO = _normalized_derivatives([orient(u), orient(u, 1)])[1]
-    speed = np.sqrt(np.sum(dP**2, axis=-1) + l_eq**2 * np.sum(dO**2, axis=-1))
-    return 0.5 * h * (speed @ _GAUSS_W)
+    """Combined length of each segment [s_i, s_i+1] of the splines: 5-point Gauss-Legendre
+    of sqrt(|P'|^2 + l_eq^2 |O'|^2), O = v/|v|."""
+    knots, control, breaks, spans = bspline_layout(tip, _joint_control(tip, orient))
+    return _gauss_lengths(knots, control, tip.k, breaks, spans, s, float(l_eq), _GAUSS_X,
+                          _GAUSS_W)
+
+
+@numba.njit(cache=True, parallel=True)
+def _gauss_lengths(knots, control, degree, breaks, spans, s, l_eq, nodes, weights):
+    # Each segment lies in one piece (the breaks are data sites); the piece's Taylor
+    # coefficients are made when the segments reach it, not stored for the whole spline.
+    n = s.size - 1
+    dims = control.shape[1]
+    out = np.empty(n)
+    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        coef = np.empty((1, degree + 1, dims))
+        basis = np.zeros((degree + 1, degree + 1))
+        left = np.zeros(degree + 1)
+        right = np.zeros(degree + 1)
+        points = np.zeros((degree + 1, degree + 1, dims))
+        current = -1
+        for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
+            h = s[i + 1] - s[i]
+            piece = locate(breaks, s[i] + 0.5 * h, max(current, 0))
+            if piece != current:
+                taylor_coefficients_at(knots, control, degree, breaks[piece], spans[piece],
+                                       basis, left, right, points, coef, 0)
+                current = piece
+            total = 0.0
+            for g in range(nodes.size):
+                x = s[i] + 0.5 * h * (nodes[g] + 1.0) - breaks[piece]
+                tip2 = 0.0
+                vv = 0.0
+                vdv = 0.0
+                dvdv = 0.0
+                for d in range(3):
+                    dp = derivative(coef, 0, x, 1, d)
+                    v = derivative(coef, 0, x, 0, 3 + d)
+                    dv = derivative(coef, 0, x, 1, 3 + d)
+                    tip2 += dp * dp
+                    vv += v * v
+                    vdv += v * dv
+                    dvdv += dv * dv
+                # O' = (v' - (n.v') n)/|v|, n = v/|v|: |O'|^2 = (|v'|^2 - (n.v')^2)/|v|^2
+                turn2 = max(dvdv - vdv * vdv / vv, 0.0) / vv
+                total += weights[g] * np.sqrt(tip2 + l_eq * l_eq * turn2)
+            out[i] = 0.5 * h * total
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _sample(breaks, coef, x, with_tip_derivatives):
+    n = x.size
+    P = np.empty((n, 3))
+    O = np.empty((n, 3))
+    m = n if with_tip_derivatives else 0
+    speed = np.empty(m)
+    bend = np.empty(m)
+    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        piece = 0
+        for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
+            piece = locate(breaks, x[i], piece)
+            u = x[i] - breaks[piece]
+            for d in range(3):
+                P[i, d] = derivative(coef, piece, u, 0, d)
+                O[i, d] = derivative(coef, piece, u, 0, 3 + d)
+            r = np.sqrt(O[i, 0] * O[i, 0] + O[i, 1] * O[i, 1] + O[i, 2] * O[i, 2])
+            for d in range(3):
+                O[i, d] /= r
+            if with_tip_derivatives:
+                first = 0.0
+                second = 0.0
+                for d in range(3):
+                    first += derivative(coef, piece, u, 1, d) ** 2
+                    second += derivative(coef, piece, u, 2, d) ** 2
+                speed[i] = np.sqrt(first)
+                bend[i] = np.sqrt(second)
+    return P, O, speed, bend

@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import dataclasses
 
+import numba
 import numpy as np
 
 #: |horizontal part of O| below which C is treated as undefined (tool along z); the
 #: orientation error this can cause is below this value in rad.
 POLE_TOLERANCE = 1e-10
+#: Samples per block of the inverse kinematics' element-wise last step.
+_BLOCK = 32768
 
 
 def tilt_x_orientation(a: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -150,9 +153,7 @@ class TrunnionKinematics:
         period = np.pi if both else 2.0 * np.pi
 
         def tilt_of(C):
-            # C differs from c_up by a multiple of pi; an odd multiple means tilt < 0
-            flipped = defined & (np.cos(C - c_up) < 0.0)
-            return self.tilt_direction * np.where(flipped, -tilt_abs, tilt_abs)
+            return _tilt(C, c_up, tilt_abs, defined, self.tilt_direction)
 
         if c_near is None or np.ndim(c_near) == 0:
             if c_near is not None:
@@ -166,9 +167,23 @@ class TrunnionKinematics:
             c_near = np.broadcast_to(np.asarray(c_near, dtype=float), c_plus.shape)
             C = c_plus + period * np.round((c_near - c_plus) / period)
             C = np.where(defined, C, c_near)
-        tilt = tilt_of(C)
-        return np.concatenate([self.linear_axes(P, tilt, C), np.stack([tilt, C], axis=-1)],
-                              axis=-1)
+        q = np.empty(np.broadcast_shapes(P.shape[:-1], C.shape) + (5,))
+        if P.ndim == 2 and C.shape == P.shape[:1]:
+            # a path: the tilt and the linear axes block by block, whose temporaries stay
+            # in cache
+            for start in range(0, P.shape[0], _BLOCK):
+                block = slice(start, start + _BLOCK)
+                tilt = _tilt(C[block], c_up[block], tilt_abs[block], defined[block],
+                             self.tilt_direction)
+                q[block, 3] = tilt
+                q[block, 4] = C[block]
+                q[block, :3] = self.linear_axes(P[block], tilt, C[block])
+        else:
+            tilt = tilt_of(C)
+            q[..., 3] = tilt
+            q[..., 4] = C
+            q[..., :3] = self.linear_axes(P, tilt, C)
+        return q
 
     def _best_path_branch(self, c_up, defined, tilt_of) -> np.ndarray:
         """C along a path for a tilt axis that may go both ways.
@@ -205,6 +220,13 @@ class TrunnionKinematics:
         return max(worst, 0.0), half_turns, worst, int(start.size > 0 and start[0] < 0.0)
 
 
+def _tilt(C, c_up, tilt_abs, defined, direction):
+    """The commanded tilt on the branch of C: C differs from c_up by a multiple of pi, and
+    an odd multiple means the physical tilt is negative."""
+    flipped = defined & (np.cos(C - c_up) < 0.0)
+    return direction * np.where(flipped, -tilt_abs, tilt_abs)
+
+
 def _first_defined(c: np.ndarray, defined: np.ndarray) -> float:
     index = np.flatnonzero(np.atleast_1d(defined))
     return float(np.atleast_1d(c)[index[0]]) if index.size else 0.0
@@ -218,15 +240,37 @@ def _unwrap_path(c_raw: np.ndarray, defined: np.ndarray, period: float,
     defined = np.atleast_1d(defined)
     if c_raw.ndim != 1:
         raise ValueError("path inverse kinematics needs 1-D samples (P, O of shape (N, 3))")
-    index = np.flatnonzero(defined)
-    if index.size == 0:
+    if not defined.any():
         return np.full(c_raw.shape, 0.0 if c_start is None else c_start)
-    c_defined = np.unwrap(c_raw[index], period=period)
+    everywhere = bool(defined.all())
+    index = None if everywhere else np.flatnonzero(defined)
+    c_defined = _unwrap(np.ascontiguousarray(c_raw if everywhere else c_raw[index], dtype=float),
+                        float(period))
     if c_start is not None:
         c_defined += period * np.round((c_start - c_defined[0]) / period)
-    if index.size == c_raw.size:
+    if everywhere:
         return c_defined
     return np.interp(np.arange(c_raw.size), index, c_defined)
+
+
+@numba.njit(cache=True)
+def _unwrap(p, period):
+    """:func:`numpy.unwrap` ``(p, period=period)`` of a 1-D array, to the last bit (the same
+    operations in the same order), in one pass instead of seven array passes."""
+    up = p.copy()
+    high = period / 2
+    low = -high
+    total = 0.0
+    for i in range(1, p.size):
+        step = p[i] - p[i - 1]
+        wrapped = np.mod(step - low, period) + low
+        if wrapped == low and step > 0:
+            wrapped = high
+        # numpy adds the zero corrections too; adding 0.0 leaves the running sum unchanged
+        correction = 0.0 if abs(step) < high else wrapped - step
+        total += correction
+        up[i] = p[i] + total
+    return up
 
 
 def read_direction(table, key: str) -> float:
