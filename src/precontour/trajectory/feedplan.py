@@ -242,37 +242,35 @@ def _grid_geometry(path, machine, s_grid):
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_first(q, i, k, h):
-    """:func:`numpy.gradient` of column k of q at row i: central differences inside,
-    one-sided at the ends, the same operations as numpy's."""
-    last = q.shape[0] - 1
+def _gradient_rows(i, last):
+    """The rows :func:`numpy.gradient` differences at row i (central inside, one-sided at
+    the ends) and how many grid steps apart they are."""
     if i == 0:
-        return (q[1, k] - q[0, k]) / h
+        return 1, 0, 1.0
     if i == last:
-        return (q[last, k] - q[last - 1, k]) / h
-    return (q[i + 1, k] - q[i - 1, k]) / (2.0 * h)
+        return last, last - 1, 1.0
+    return i + 1, i - 1, 2.0
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_first(q, i, k, h):
+    """:func:`numpy.gradient` of column k of q at row i, with numpy's operations."""
+    upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
+    return (q[upper, k] - q[lower, k]) / (steps * h)
 
 
 @numba.njit(cache=True, inline="always")
 def _slope_second(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_first` at row i."""
-    last = q.shape[0] - 1
-    if i == 0:
-        return (_slope_first(q, 1, k, h) - _slope_first(q, 0, k, h)) / h
-    if i == last:
-        return (_slope_first(q, last, k, h) - _slope_first(q, last - 1, k, h)) / h
-    return (_slope_first(q, i + 1, k, h) - _slope_first(q, i - 1, k, h)) / (2.0 * h)
+    upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
+    return (_slope_first(q, upper, k, h) - _slope_first(q, lower, k, h)) / (steps * h)
 
 
 @numba.njit(cache=True, inline="always")
 def _slope_third(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_second` at row i."""
-    last = q.shape[0] - 1
-    if i == 0:
-        return (_slope_second(q, 1, k, h) - _slope_second(q, 0, k, h)) / h
-    if i == last:
-        return (_slope_second(q, last, k, h) - _slope_second(q, last - 1, k, h)) / h
-    return (_slope_second(q, i + 1, k, h) - _slope_second(q, i - 1, k, h)) / (2.0 * h)
+    upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
+    return (_slope_second(q, upper, k, h) - _slope_second(q, lower, k, h)) / (steps * h)
 
 
 def _erode(values, speed, reach, h):
