@@ -27,8 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from precontour import load_machine
-from precontour.toolpath import ToolPath, read_program
+from precontour.toolpath import read_program
 from precontour.trajectory import generate_trajectory, program_trajectory
+
+sys.path.insert(0, __file__.rsplit("/", 1)[0])
+from bench_trajectory import synthetic_path  # noqa: E402
 
 
 def write_program(path: Path, n_blocks: int) -> None:
@@ -50,18 +53,6 @@ def write_program(path: Path, n_blocks: int) -> None:
     lines += ["G94 G1 F600", f"G17 G2 X{tip[-1, 0]:.4f} Y{tip[-1, 1]:.4f} I2 J0 "
               f"Z{tip[-1, 2] - 1:.4f}", "G49", "G0 Z300", "M9", "M5", "M30", "%"]
     path.write_text("\n".join(lines) + "\n")
-
-
-def cl_path(n_points: int) -> ToolPath:
-    u = np.linspace(0.0, 1.0, n_points)
-    turns = 0.1 * n_points / (2 * np.pi * 35.0)
-    theta = 2 * np.pi * turns * u
-    r = 10.0 + 50.0 * u
-    P = np.stack([r * np.cos(theta), r * np.sin(theta), 30.0 * np.cos(r / 40.0)], axis=-1)
-    A = 0.6 + 0.3 * np.sin(7 * theta / turns)
-    C = theta + 0.4 * np.sin(3 * theta)
-    O = np.stack([np.sin(A) * np.sin(C), -np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
-    return ToolPath(P=P, O=O, source="synthetic")
 
 
 def peak_mb() -> float:
@@ -89,7 +80,7 @@ def main(argv=None) -> None:
         program_peak = peak_mb()
     n_points = 100_000
     t3 = time.perf_counter()
-    baseline = generate_trajectory(cl_path(n_points), machine)
+    baseline = generate_trajectory(synthetic_path(n_points), machine)
     t4 = time.perf_counter()
     base = t4 - t3
     print(f"program {path.name}: {program.n_moves} moves, {traj.n_samples} samples "
