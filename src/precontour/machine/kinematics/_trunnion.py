@@ -74,6 +74,28 @@ def rotary_pair(rotary, C=None) -> tuple[np.ndarray, np.ndarray]:
     raise ValueError(f"expected q[..., 5] or rotary[..., 2] axis values, got shape {rotary.shape}")
 
 
+class TiltAboutX:
+    """The hooks of a table tilted about x (A), then turned about its own z (C), for
+    :class:`TrunnionKinematics`."""
+
+    axis_names = ("X", "Y", "Z", "A", "C")
+    _TILT_FIELDS = ("a_min", "a_max")
+    _physical_orientation = staticmethod(tilt_x_orientation)
+    _physical_jacobian = staticmethod(tilt_x_jacobian)
+    _physical_turn = staticmethod(tilt_x_turn)
+
+
+class TiltAboutY:
+    """The hooks of a table tilted about y (B), then turned about its own z (C), for
+    :class:`TrunnionKinematics`."""
+
+    axis_names = ("X", "Y", "Z", "B", "C")
+    _TILT_FIELDS = ("b_min", "b_max")
+    _physical_orientation = staticmethod(tilt_y_orientation)
+    _physical_jacobian = staticmethod(tilt_y_jacobian)
+    _physical_turn = staticmethod(tilt_y_turn)
+
+
 class TrunnionKinematics:
     """Mixin of the trunnion types (frozen dataclasses). A subclass provides
 
@@ -83,6 +105,9 @@ class TrunnionKinematics:
       angle of :func:`tilt_x_orientation` / :func:`tilt_y_orientation`;
     - ``_physical_orientation``, ``_physical_jacobian``, ``_physical_turn`` (one of the pairs
       above), ``forward(q)`` and ``linear_axes(P, A, C)``.
+
+    :class:`TiltAboutX` and :class:`TiltAboutY` give the axis names, the tilt fields and the
+    three ``_physical_*`` functions of their tilt axis.
     """
 
     axis_names: tuple[str, ...] = ("X", "Y", "Z", "A", "C")

@@ -15,14 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._trunnion import (POLE_TOLERANCE, TrunnionKinematics, rotary_pair, tilt_x_jacobian,
-                        tilt_x_orientation, tilt_x_turn)
+from ._trunnion import POLE_TOLERANCE, TiltAboutX, TrunnionKinematics, rotary_pair
 
 __all__ = ["ACTrunnion", "POLE_TOLERANCE"]
 
 
 @dataclass(frozen=True)
-class ACTrunnion(TrunnionKinematics):
+class ACTrunnion(TiltAboutX, TrunnionKinematics):
     """A-C trunnion kinematics with offsets ``L_ac`` (A to C axis) and ``L_ty`` (A axis to
     tool), both in mm along z. ``a_min``/``a_max`` (rad) are the A axis travel, if limited."""
 
@@ -30,12 +29,6 @@ class ACTrunnion(TrunnionKinematics):
     L_ty: float
     a_min: float | None = None
     a_max: float | None = None
-
-    axis_names = ("X", "Y", "Z", "A", "C")
-    _TILT_FIELDS = ("a_min", "a_max")
-    _physical_orientation = staticmethod(tilt_x_orientation)
-    _physical_jacobian = staticmethod(tilt_x_jacobian)
-    _physical_turn = staticmethod(tilt_x_turn)
 
     @classmethod
     def from_table(cls, table) -> "ACTrunnion":

@@ -40,8 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._trunnion import (LinuxcncTrunnion, rotary_pair, tilt_x_jacobian, tilt_x_orientation,
-                        tilt_x_turn)
+from ._trunnion import LinuxcncTrunnion, TiltAboutX, rotary_pair, tilt_x_orientation
 
 #: Machine-file keys of the geometry, in the order of :class:`XYZACTrunnion`'s fields.
 GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "y_offset",
@@ -49,7 +48,7 @@ GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "
 
 
 @dataclass(frozen=True)
-class XYZACTrunnion(LinuxcncTrunnion):
+class XYZACTrunnion(TiltAboutX, LinuxcncTrunnion):
     """LinuxCNC ``xyzac-trt-kins`` geometry (see the module docstring); lengths in mm,
     directions +1/-1, ``a_min``/``a_max`` the A travel in rad (``None``: free)."""
 
@@ -64,11 +63,6 @@ class XYZACTrunnion(LinuxcncTrunnion):
     a_min: float | None = None
     a_max: float | None = None
 
-    axis_names = ("X", "Y", "Z", "A", "C")
-    _TILT_FIELDS = ("a_min", "a_max")
-    _physical_orientation = staticmethod(tilt_x_orientation)
-    _physical_jacobian = staticmethod(tilt_x_jacobian)
-    _physical_turn = staticmethod(tilt_x_turn)
     _GEOMETRY_KEYS = GEOMETRY_KEYS
     _DIRECTION_KEYS = ("a_direction", "c_direction")
 

@@ -37,8 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._trunnion import (LinuxcncTrunnion, rotary_pair, tilt_y_jacobian, tilt_y_orientation,
-                        tilt_y_turn)
+from ._trunnion import LinuxcncTrunnion, TiltAboutY, rotary_pair, tilt_y_orientation
 
 #: Machine-file keys of the geometry, in the order of :class:`XYZBCTrunnion`'s fields.
 GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "x_offset",
@@ -46,7 +45,7 @@ GEOMETRY_KEYS: tuple[str, ...] = ("x_rot_point", "y_rot_point", "z_rot_point", "
 
 
 @dataclass(frozen=True)
-class XYZBCTrunnion(LinuxcncTrunnion):
+class XYZBCTrunnion(TiltAboutY, LinuxcncTrunnion):
     """LinuxCNC ``xyzbc-trt-kins`` geometry (see the module docstring); lengths in mm,
     directions +1/-1, ``b_min``/``b_max`` the B travel in rad (``None``: free)."""
 
@@ -61,11 +60,6 @@ class XYZBCTrunnion(LinuxcncTrunnion):
     b_min: float | None = None
     b_max: float | None = None
 
-    axis_names = ("X", "Y", "Z", "B", "C")
-    _TILT_FIELDS = ("b_min", "b_max")
-    _physical_orientation = staticmethod(tilt_y_orientation)
-    _physical_jacobian = staticmethod(tilt_y_jacobian)
-    _physical_turn = staticmethod(tilt_y_turn)
     _GEOMETRY_KEYS = GEOMETRY_KEYS
     _DIRECTION_KEYS = ("b_direction", "c_direction")
 
