@@ -35,6 +35,14 @@ def bspline_pieces(curve: BSpline, control: np.ndarray | None = None):
     return breaks, _taylor_coefficients(knots, control, curve.k, breaks, spans)
 
 
+def joint_control(tip: BSpline, orientation: BSpline) -> np.ndarray:
+    """The control points of a tool tip and an orientation curve side by side (tip in dims
+    0-2, orientation in 3-5), for one conversion to pieces; they must share knots and degree."""
+    if not (tip.k == orientation.k and np.array_equal(tip.t, orientation.t)):
+        raise ValueError("the tip and orientation curves must share their knots and degree")
+    return np.concatenate([tip.c, orientation.c], axis=1)
+
+
 def bspline_layout(curve: BSpline, control: np.ndarray | None = None):
     """``(knots, control, breaks, spans)`` of a B-spline, as the compiled helpers take them:
     contiguous knots and control points (n, dims), the distinct knots, and the span of each

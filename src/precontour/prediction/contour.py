@@ -19,7 +19,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 
 from ..errors import InputError
 from ..machine.kinematics import angle_between
-from ..piecewise import bspline_pieces
+from ..piecewise import bspline_pieces, joint_control
 from ..trajectory.sampled import Trajectory
 
 #: The closest point is searched within DEFAULT_WINDOW seconds of the time-corresponding
@@ -145,10 +145,7 @@ class ReferencePath:
     def _pieces(self):
         """Breaks and Taylor coefficients of both curves, tip in dims 0-2 and orientation in
         3-5 (:meth:`from_samples` gives them the same knots)."""
-        if not (self.tip.k == self.orientation.k
-                and np.array_equal(self.tip.t, self.orientation.t)):
-            raise ValueError("the tip and orientation curves must share their knots and degree")
-        return bspline_pieces(self.tip, np.concatenate([self.tip.c, self.orientation.c], axis=1))
+        return bspline_pieces(self.tip, joint_control(self.tip, self.orientation))
 
     @cached_property
     def _tip_arrays(self):

@@ -29,7 +29,7 @@ from scipy.interpolate import BSpline
 from ..errors import InputError, ToolPathError, plain
 from ..machine.kinematics import angle_between, normalize_orientations
 from ..piecewise import (bspline_layout, bspline_pieces, derivative, evaluate,
-                         interpolating_spline, locate, taylor_coefficients_at)
+                         interpolating_spline, joint_control, locate, taylor_coefficients_at)
 
 #: Equivalent length of one radian of tool rotation in the combined path parameter, mm/rad.
 L_EQ = 1.0
@@ -81,7 +81,8 @@ class PathSpline:
     def _pieces(self):
         """Breaks and Taylor coefficients of both splines: tip in dims 0-2, orientation in
         3-5 (:func:`fit_path` gives them the same knots)."""
-        return _both_pieces(self.tip_spline, self.orientation_spline)
+        return bspline_pieces(self.tip_spline,
+                              joint_control(self.tip_spline, self.orientation_spline))
 
     def tip(self, s, nu: int = 0) -> np.ndarray:
         """Tool tip P(s) (nu = 0) or its nu-th derivative with respect to s; shape
@@ -221,15 +222,6 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
                       point_index=index, l_eq=float(l_eq))
 
 
-def _both_pieces(tip: BSpline, orient: BSpline):
-    return bspline_pieces(tip, _joint_control(tip, orient))
-
-
-def _joint_control(tip: BSpline, orient: BSpline) -> np.ndarray:
-    """Control points of both splines side by side (tip 0-2, orientation 3-5)."""
-    if not (tip.k == orient.k and np.array_equal(tip.t, orient.t)):
-        raise ValueError("the tip and orientation splines must share their knots and degree")
-    return np.concatenate([tip.c, orient.c], axis=1)
 
 
 def fit_toolpath(toolpath, *, l_eq: float = L_EQ) -> PathSpline:
@@ -248,7 +240,7 @@ def _interpolate(s: np.ndarray, P: np.ndarray, O: np.ndarray) -> tuple[BSpline, 
 def _segment_lengths(tip: BSpline, orient: BSpline, s: np.ndarray, l_eq: float) -> np.ndarray:
     """Combined length of each segment [s_i, s_i+1] of the splines: 5-point Gauss-Legendre
     of sqrt(|P'|^2 + l_eq^2 |O'|^2), O = v/|v|."""
-    knots, control, breaks, spans = bspline_layout(tip, _joint_control(tip, orient))
+    knots, control, breaks, spans = bspline_layout(tip, joint_control(tip, orient))
     return _gauss_lengths(knots, control, tip.k, breaks, spans, s, float(l_eq), _GAUSS_X,
                           _GAUSS_W)
 
