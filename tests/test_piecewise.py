@@ -5,7 +5,7 @@ import pytest
 from scipy.interpolate import BSpline, make_interp_spline
 
 from precontour.piecewise import (FIT_OVERLAP, FIT_POINTS, bspline_pieces, evaluate,
-                                  interpolating_spline)
+                                  interpolating_spline, joint_control)
 
 
 def _sites(rng, n, irregular=False):
@@ -61,3 +61,21 @@ def test_interpolating_spline_of_few_points_or_one_column():
         assert ours.c.shape == (n,)
     x = _sites(rng, 30)
     assert isinstance(interpolating_spline(x, x**2, 4), BSpline)  # even degree: scipy's
+
+
+def test_bad_arguments_are_refused():
+    rng = np.random.default_rng(7)
+    x = _sites(rng, 30)
+    spline = make_interp_spline(x, rng.normal(size=(x.size, 6)), k=5)
+    breaks, coef = bspline_pieces(spline)
+    with pytest.raises(ValueError, match="dims must be a non-empty contiguous slice"):
+        evaluate(breaks, coef, x, 0, slice(0, 6, 2))
+    with pytest.raises(ValueError, match="dims must be a non-empty contiguous slice"):
+        evaluate(breaks, coef, x, 0, slice(3, 3))
+    with pytest.raises(ValueError, match="derivative order must be >= 0, got -1"):
+        evaluate(breaks, coef, x, -1)
+    other = make_interp_spline(x * 1.5, rng.normal(size=(x.size, 3)), k=5)
+    with pytest.raises(ValueError, match="must share their knots and degree"):
+        joint_control(spline, other)
+    np.testing.assert_array_equal(joint_control(spline, spline),
+                                  np.concatenate([spline.c, spline.c], axis=1))
