@@ -9,10 +9,27 @@ import scipy.signal as sig
 
 from precontour import load_machine
 
+#: Draws over which a result decided by friction at a stop is judged (the path as given, then
+#: with 1e-9 mm of normal noise on the tip points, seeds 1, 2, ...): where static friction
+#: holds an axis is decided by nanometres, so such a test asserts on the worst draw, with the
+#: margin measured over many more draws (each test's docstring says how many and what).
+FRICTION_DRAWS = 5
+
 
 @pytest.fixture(scope="session")
 def machine():
     return load_machine("zhang2013")
+
+
+def nanometre_draws(toolpath, draws: int = FRICTION_DRAWS):
+    """``toolpath`` as given, then ``draws - 1`` copies with 1e-9 mm of normal noise on its tip
+    points (seeds 1, 2, ...): the draws of :data:`FRICTION_DRAWS`."""
+    import dataclasses
+
+    yield toolpath
+    for seed in range(1, draws):
+        noise = np.random.default_rng(seed).normal(0.0, 1e-9, np.shape(toolpath.P))
+        yield dataclasses.replace(toolpath, P=toolpath.P + noise)
 
 
 def smoothstep7(s):

@@ -15,6 +15,8 @@ from precontour.machine.machine_file import load_machine
 from precontour.tables import read_trajectory
 from precontour.trajectory.builtin_paths import builtin_path
 
+from conftest import nanometre_draws
+
 gcodeparser = pytest.importorskip("gcodeparser")
 
 TOL = np.array([1e-3] * 3 + [1e-5] * 2)
@@ -264,25 +266,30 @@ def test_virtual_machine_check_in_two_processes_is_identical():
 
 
 def test_run_learns_within_the_limits(tmp_path, capsys):
-    """``run --learn 4`` on `paper` with pid-high: 96.3 % of the max tip error removed on the
+    """``run --learn 4`` on `paper` with pid-high: most of the max tip error removed on the
     realistic virtual machine (88.2 % without learning), the written commands within every
     limit (plain finite differences) and nowhere worse than uncompensated there. Where
-    friction holds the axes at the stop is decided by nanometres: with 1e-9 mm of noise on
-    the CL points, six draws removed 94.9-98.7 %, hence the bound of 94 %."""
-    program = _write_cl(tmp_path / "paper.csv", "paper")
-    assert main(["run", str(program), "--controller", "pid-high", "--learn", "4",
-                 "-o", str(tmp_path / "out.ngc"), "--commands", str(tmp_path / "cmd.csv")]) == 0
-    printed = capsys.readouterr().out
-    assert "learned against the virtual machine within the limits (121 runs)" in printed
-    rows = {line[:22].strip(): [float(v) for v in line[22:].split()]
-            for line in printed.splitlines() if line.startswith("simulated ")
-            and "reduction" not in line}
-    before, after = rows["simulated before"], rows["simulated after"]
-    assert all(a <= b for a, b in zip(after, before))
-    assert after[0] <= 0.06 * before[0]
+    friction holds the axes at the stop is decided by nanometres: over 10 draws
+    (:func:`conftest.nanometre_draws`) learning kept 0.013-0.051 of the max, hence the bound
+    of 0.06 on the worst of :data:`conftest.FRICTION_DRAWS`."""
     machine = load_machine("zhang2013")
-    commands = read_trajectory(tmp_path / "cmd.csv")
-    for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
-        peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order
-        limit = np.array([getattr(d, key) for d in machine.drives])
-        assert np.all(peak <= limit * (1 + 1e-9)), (key, peak / limit)
+    for draw, path in enumerate(nanometre_draws(builtin_path("paper"))):
+        program = tmp_path / f"paper{draw}.csv"
+        np.savetxt(program, np.column_stack([path.P, path.O]), delimiter=",",
+                   header="Px,Py,Pz,Oi,Oj,Ok", comments="")
+        assert main(["run", str(program), "--controller", "pid-high", "--learn", "4",
+                     "-o", str(tmp_path / f"out{draw}.ngc"),
+                     "--commands", str(tmp_path / "cmd.csv")]) == 0
+        printed = capsys.readouterr().out
+        assert "learned against the virtual machine within the limits (121 runs)" in printed
+        rows = {line[:22].strip(): [float(v) for v in line[22:].split()]
+                for line in printed.splitlines() if line.startswith("simulated ")
+                and "reduction" not in line}
+        before, after = rows["simulated before"], rows["simulated after"]
+        assert all(a <= b for a, b in zip(after, before))
+        assert after[0] <= 0.06 * before[0]
+        commands = read_trajectory(tmp_path / "cmd.csv")
+        for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
+            peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order
+            limit = np.array([getattr(d, key) for d in machine.drives])
+            assert np.all(peak <= limit * (1 + 1e-9)), (draw, key, peak / limit)

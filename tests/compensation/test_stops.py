@@ -11,6 +11,8 @@ from precontour.toolpath import ToolPath
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 
+from conftest import nanometre_draws
+
 REALISTIC = dict(mode="discrete", friction=True, ff_friction=True)
 
 
@@ -99,23 +101,26 @@ def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like
 
 def test_learning_removes_the_final_stop_error_on_the_fan_path(machine):
     """Issue 13: with pid-high on the realistic machine, one linear pass leaves 20 um of the
-    fan path's 52 um at the final stop; learning against the machine removes >= 85 %."""
-    traj = generate_trajectory(builtin_path("fan"), machine)
+    fan path's 52 um at the final stop (0.34 of it); learning against the machine removes
+    >= 85 %. Over 10 draws (:func:`conftest.nanometre_draws`) it kept 0.056-0.102 of the
+    max, so the worst of :data:`conftest.FRICTION_DRAWS` is asserted <= 0.15."""
     models = machine.controller("pid-high").error_models(machine.drives)
+    for path in nanometre_draws(builtin_path("fan")):
+        traj = generate_trajectory(path, machine)
 
-    def actual(q):
-        return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
+        def actual(q):
+            return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
-    linear = compensate(traj, machine.kinematics, models)
-    learned = compensate(traj, machine.kinematics, models, machine_actual=actual)
-    reference = ReferencePath.from_trajectory(traj)
+        linear = compensate(traj, machine.kinematics, models)
+        learned = compensate(traj, machine.kinematics, models, machine_actual=actual)
+        reference = ReferencePath.from_trajectory(traj)
 
-    def tip_max(q):
-        return contour_errors(reference, actual(q), machine.kinematics).tip.max()
+        def tip_max(q):
+            return contour_errors(reference, actual(q), machine.kinematics).tip.max()
 
-    before = tip_max(traj.q)
-    assert tip_max(linear.trajectory.q) > 0.3 * before          # the problem
-    assert tip_max(learned.trajectory.q) <= 0.15 * before       # solved
+        before = tip_max(traj.q)
+        assert tip_max(linear.trajectory.q) > 0.3 * before          # the problem
+        assert tip_max(learned.trajectory.q) <= 0.15 * before       # solved
 
 
 def test_learning_passes_must_not_be_negative(machine, fan_like):
@@ -169,27 +174,33 @@ def _learned_and_reference_errors(traj, machine, monkeypatch=None, **learning_op
 def test_learning_removes_85_percent_at_the_final_stop_of_fan25(machine):
     """Issue 13: >= 85 % of the max tip error removed with pid-high on a path whose tool still
     turns at the final stop, where static friction holds the axes off the end point through
-    the dwell (with settling at 0 / 30 / 60 ms only: 82.3 %), and never worse anywhere."""
-    traj = generate_trajectory(_fan25(), machine)
-    before, after = _learned_and_reference_errors(traj, machine)
-    assert after.tip.max() <= 0.15 * before.tip.max()
-    for key, value in after.summary().items():
-        assert value <= before.summary()[key]
+    the dwell (with settling at 0 / 30 / 60 ms only: 82.3 %), and never worse anywhere. Over
+    10 draws (:func:`conftest.nanometre_draws`) learning kept 0.062-0.129 of the max; the
+    worst of :data:`conftest.FRICTION_DRAWS` is asserted."""
+    for path in nanometre_draws(_fan25()):
+        traj = generate_trajectory(path, machine)
+        before, after = _learned_and_reference_errors(traj, machine)
+        assert after.tip.max() <= 0.15 * before.tip.max()
+        for key, value in after.summary().items():
+            assert value <= before.summary()[key]
 
 
 def test_the_line_search_removes_85_percent_at_interior_reversals(machine, monkeypatch):
     """With pid-high the plain learning update overshoots at this path's interior reversals
     and keeps 21 % of the max tip error (at 0.98 s); the line-searched sequence removes
-    >= 85 % (91 % measured), never worse anywhere."""
-    traj = generate_trajectory(_fan_reversals(), machine)
-    before, plain = _learned_and_reference_errors(traj, machine, monkeypatch,
-                                                  line_search_steps=())
-    assert plain.tip.max() > 0.15 * before.tip.max()                 # the problem
-    monkeypatch.undo()
-    before, after = _learned_and_reference_errors(traj, machine)
-    assert after.tip.max() <= 0.15 * before.tip.max()                # solved
-    for key, value in after.summary().items():
-        assert value <= before.summary()[key]
+    >= 85 %, never worse anywhere. Over 10 draws (:func:`conftest.nanometre_draws`) the
+    plain sequence kept 0.209 on every draw, the line search 0.089-0.136; the worst of
+    :data:`conftest.FRICTION_DRAWS` is asserted."""
+    for path in nanometre_draws(_fan_reversals()):
+        traj = generate_trajectory(path, machine)
+        before, plain = _learned_and_reference_errors(traj, machine, monkeypatch,
+                                                      line_search_steps=())
+        assert plain.tip.max() > 0.15 * before.tip.max()                 # the problem
+        monkeypatch.undo()
+        before, after = _learned_and_reference_errors(traj, machine)
+        assert after.tip.max() <= 0.15 * before.tip.max()                # solved
+        for key, value in after.summary().items():
+            assert value <= before.summary()[key]
 
 
 def test_commands_refused_as_inadmissible_are_not_kept(machine, fan_like):

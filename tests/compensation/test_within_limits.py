@@ -20,6 +20,8 @@ from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 from precontour.trajectory.limits import AxisLimits
 
+from conftest import nanometre_draws
+
 
 @pytest.fixture(scope="module")
 def circle(machine):
@@ -182,32 +184,40 @@ def test_kinks_are_smoothed_instead_of_slowed(tmp_path, monkeypatch):
 def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
     """``run --learn``: on `paper` with pid-high the commands within limits (the linear pass,
     which keeps them there) leave 4.4 um of the 37 um max tip error on the realistic machine;
-    learning with smoothed updates keeps every limit (plain finite differences) and leaves
-    0.48 um, nowhere worse than uncompensated. Unsmoothed learning (``compensate``) breaks
-    the jerk limit."""
-    traj = generate_trajectory(builtin_path("paper"), machine)
+    learning with smoothed updates keeps every limit (plain finite differences) and is
+    nowhere worse than uncompensated. What it leaves is decided by nanometres at the final
+    stop: over 30 draws (:func:`conftest.nanometre_draws`) with the newest dependency versions
+    it left 0.48, 0.51, 1.37 or 1.89 um (17, 2, 7 and 4 draws), over 12 with the oldest
+    allowed ones 0.48, 0.51 or 1.37 um (7, 1, 4; 1.37 um on the exact path there, as a fresh
+    clone measured elsewhere): at most 0.434 of the linear pass's, hence the bound of 0.5 on
+    the worst of :data:`conftest.FRICTION_DRAWS`. Unsmoothed learning (``compensate``) breaks the jerk
+    limit."""
     models = machine.controller("pid-high").error_models(machine.drives)
     limits = AxisLimits.from_machine(machine)
+    ratios = []
+    for path in nanometre_draws(builtin_path("paper")):
+        traj = generate_trajectory(path, machine)
 
-    def actual(q):
-        return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
+        def actual(q):
+            return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
-    limited = compensate_within_limits(traj, machine.kinematics, models, limits)
-    learned = learn_within_limits(limited, machine.kinematics, models, limits, actual,
-                                  DEFAULT_LEARNING_PASSES)
-    q = learned.result.trajectory.q
-    assert learned.check.ok and learned.result.learning is not None
-    for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
-                                                limits.jerk)):
-        assert np.all(peak <= limit * (1 + 1e-9))
-    reference = ReferencePath.from_trajectory(learned.reference)
+        limited = compensate_within_limits(traj, machine.kinematics, models, limits)
+        learned = learn_within_limits(limited, machine.kinematics, models, limits, actual,
+                                      DEFAULT_LEARNING_PASSES)
+        q = learned.result.trajectory.q
+        assert learned.check.ok and learned.result.learning is not None
+        for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
+                                                    limits.jerk)):
+            assert np.all(peak <= limit * (1 + 1e-9))
+        reference = ReferencePath.from_trajectory(learned.reference)
 
-    def on_machine(q_cmd):
-        return contour_errors(reference, actual(q_cmd), machine.kinematics).summary()
+        def on_machine(q_cmd):
+            return contour_errors(reference, actual(q_cmd), machine.kinematics).summary()
 
-    before, start, after = (on_machine(learned.reference.q),
-                            on_machine(limited.result.trajectory.q), on_machine(q))
-    assert all(after[key] <= before[key] for key in before)
-    assert after["tip_max_um"] <= 0.25 * start["tip_max_um"]
+        before, start, after = (on_machine(learned.reference.q),
+                                on_machine(limited.result.trajectory.q), on_machine(q))
+        assert all(after[key] <= before[key] for key in before)
+        ratios.append(after["tip_max_um"] / start["tip_max_um"])
+    assert max(ratios) <= 0.5, ratios
     unsmoothed = compensate(traj, machine.kinematics, models, machine_actual=actual)
     assert np.any(_peaks(unsmoothed.trajectory.q, traj.ts)[2] > limits.jerk)   # the problem
