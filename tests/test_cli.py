@@ -196,8 +196,12 @@ def test_help_imports_no_numerical_library():
 def test_every_help_and_version_import_no_numerical_library():
     import subprocess
     import sys
-    code = ("import sys\nfrom precontour.cli import main\n"
-            f"for argv in [['--version'], ['--help']] + [[c, '--help'] for c in {COMMANDS!r}]:\n"
+    # every command the parser has, also those added later
+    code = ("import sys\nfrom precontour.cli import build_parser, main\n"
+            "commands = [a for a in build_parser()._actions if hasattr(a, 'choices') and "
+            "isinstance(a.choices, dict)][0].choices\n"
+            f"assert set(commands) >= set({COMMANDS!r}), sorted(commands)\n"
+            "for argv in [['--version'], ['--help']] + [[c, '--help'] for c in commands]:\n"
             "    try:\n        main(argv)\n    except SystemExit as exc:\n"
             "        assert exc.code == 0, argv\n"
             f"print(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r}))\n")
