@@ -16,7 +16,7 @@ import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -25,13 +25,15 @@ import numpy as np
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
                                          learn_within_limits)
+from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, EXPORT_FORMATS,
+                       default_max_samples)
 from .errors import InputError, MachineLimitError, notice
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
-from .toolpath import EXTENSIONS, read_program, read_toolpath, toolpath_format
+from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
 from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
@@ -39,8 +41,6 @@ from .trajectory.program import program_trajectory
 from .trajectory.limits import AxisLimits, check_limits
 from .trajectory.sampled import Trajectory
 
-#: Formats of ``precontour export``.
-EXPORT_FORMATS: tuple[str, ...] = ("gcode", "halstreamer", "csv", "npz", "parquet")
 #: Extensions a G-code output may have (those the readers take as G-code).
 GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
 #: Relative difference between a command file's sampling period and the machine's servo
@@ -57,7 +57,10 @@ PARALLEL_MIN_SAMPLES = 20_000_000
 Progress = Callable[[int, int, str], None]
 
 
-def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False
+def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False,
+                            dwell: float = DEFAULT_DWELL,
+                            corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                            max_samples: int | None = None
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program, and its non-motion lines to keep (or None).
 
@@ -67,21 +70,28 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     trajectory carries the source line of every sample, and the program's pass-through lines
     (tool change, spindle, coolant, comments) come back for the output program. ``tcp`` puts
     the whole program in tool centre point mode. CL data (CSV, APT) gives the tool tip
-    already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory` and
-    has no lines to keep.
+    already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory`, its
+    samples carry the file line of the CL point they move to, and it has no lines to keep.
+    ``dwell``, ``corner_tolerance`` (G-code only) and ``max_samples`` (default
+    :func:`~precontour.defaults.default_max_samples`) are the planning options of the
+    ``trajectory`` command.
     """
+    max_samples = default_max_samples() if max_samples is None else int(max_samples)
     if toolpath_format(path) == "gcode":
         program = read_program(path, machine, tcp=tcp)
         for text in program.notices:
             notice(text)
         # the output gives machine axes: lines that switch TCP mode on or off stay comments
         passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp, tcp_all=tcp)
-        return program_trajectory(program, machine, ts=machine.servo_period), passthrough
+        return program_trajectory(program, machine, ts=machine.servo_period, dwell=dwell,
+                                  tolerance=corner_tolerance,
+                                  max_samples=max_samples), passthrough
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")
-    toolpath = read_toolpath(path, machine=machine)
-    return generate_trajectory(toolpath, machine, ts=machine.servo_period), None
+    report = read_toolpath_report(path, machine=machine)
+    return generate_trajectory(report.toolpath, machine, ts=machine.servo_period, dwell=dwell,
+                               max_samples=max_samples, lines=report.lines), None
 
 
 @dataclass(frozen=True)
@@ -96,6 +106,46 @@ class RunOutputs:
 
     def files(self) -> list[Path]:
         return [p for p in (self.program, self.stream, self.commands) if p is not None]
+
+
+@dataclass(frozen=True)
+class LargestError:
+    """Where a simulated contour error of ``run`` is largest: the sample's time and the
+    source line executing there.
+
+    ``quantity``: ``"tip"`` (``value`` in mm) or ``"orientation"`` (rad); ``commands``:
+    ``"compensated"`` or ``"uncompensated"``; ``line``: the G-code line, or the file line of
+    the CL row the tool is moving to (None when the trajectory carries no lines); ``where``:
+    how the source names it, ``"line"`` (G-code) or ``"row"`` (CL data, as its readers'
+    messages do). An error that is zero throughout (no rotary motion) is at no line."""
+
+    quantity: str
+    commands: str
+    value: float
+    time: float
+    index: int
+    line: int | None
+    where: str = "line"
+
+    @property
+    def unit(self) -> str:
+        return "um" if self.quantity == "tip" else "mrad"
+
+    def format(self) -> str:
+        """``tip, compensated  0.412 um  line 57  t = 12.345 s``, in columns."""
+        at = f"{self.where} {self.line}" if self.line is not None and self.value > 0 else "-"
+        digits = 3 if self.quantity == "tip" else 4
+        return (f"{self.quantity + ', ' + self.commands:<28}{1e3 * self.value:10.{digits}f} "
+                f"{self.unit:<5}{at:>12}   t = {self.time:.3f} s")
+
+
+def largest_error(errors: np.ndarray, t: np.ndarray, line: np.ndarray | None, *,
+                  quantity: str, commands: str, where: str = "line") -> LargestError:
+    """The :class:`LargestError` of one error signal (the first sample of its maximum)."""
+    k = int(np.argmax(errors))
+    return LargestError(quantity=quantity, commands=commands, value=float(errors[k]),
+                        time=float(t[k]), index=k,
+                        line=None if line is None else int(line[k]), where=where)
 
 
 @dataclass(frozen=True)
@@ -131,6 +181,18 @@ class RunResult:
     def predicted_after(self) -> ContourErrors:
         return self.limited.result.after
 
+    def largest_errors(self) -> tuple[LargestError, ...]:
+        """Where the simulated tip and orientation errors are largest: with the compensated
+        commands (what remains), then with the uncompensated ones. Samples are those of
+        ``limited.reference`` (the timing after any slow-down), lines ``limited.line``."""
+        t, line = self.limited.reference.t, self.limited.line
+        where = "line" if toolpath_format(self.source) == "gcode" else "row"
+        return tuple(largest_error(getattr(errors, quantity), t, line, quantity=quantity,
+                                   commands=commands, where=where)
+                     for commands, errors in (("compensated", self.simulated_after),
+                                              ("uncompensated", self.simulated_before))
+                     for quantity in ("tip", "orientation"))
+
     def table(self) -> str:
         """The end-of-run table: contour errors before and after, duration, blocks."""
         rows = [("predicted", "before", self.predicted_before),
@@ -150,6 +212,8 @@ class RunResult:
                                       self.simulated_after.orientation)):
             lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
                          f"mean {_reduction(before.mean(), after.mean())}")
+        lines.append("largest simulated errors, where:")
+        lines += ["  " + largest.format() for largest in self.largest_errors()]
         duration = self.commands.duration
         planned = self.planned.duration
         slow = self.limited.slowdowns
@@ -212,13 +276,18 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
                 raise InputError("the report folder is an input", source=str(report))
 
 
-def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
-                controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
+def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path,
+                controller: str, tcp: bool = False, dwell: float = DEFAULT_DWELL,
+                corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int = 0) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``learn``: passes of learning against the realistic virtual machine after the
-    compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
+    writes. ``machine`` (a built-in name or a machine file) and ``controller`` have no
+    default: a program compensated for another machine than the user's is wrong silently.
+    ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``: planning, as
+    :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
+    virtual machine after the compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
     0: none; skipped, with a notice, for a program not sampled at the servo period or longer
     than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples).
     ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
@@ -241,7 +310,9 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     start = time.perf_counter()
     machine_obj = load_machine(machine)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
-    planned, passthrough = load_program_trajectory(program, machine_obj, tcp=tcp)
+    planned, passthrough = load_program_trajectory(program, machine_obj, tcp=tcp, dwell=dwell,
+                                                   corner_tolerance=corner_tolerance,
+                                                   max_samples=max_samples)
     line = getattr(planned, "line", None)
     timings["plan"] = time.perf_counter() - start
 
@@ -345,7 +416,11 @@ def write_run_outputs(result: RunResult, outputs: RunOutputs,
                                                                     info=info),
                                   inputs=inputs))
     if outputs.commands is not None:
-        written.append(write_columns(outputs.commands, trajectory_columns(commands),
+        # with the source line of each sample, where known: what the table's largest errors
+        # name can be looked up in it
+        table = commands if result.limited.line is None else replace(commands,
+                                                                     line=result.limited.line)
+        written.append(write_columns(outputs.commands, trajectory_columns(table),
                                      inputs=inputs))
     return written
 
@@ -377,11 +452,12 @@ def export_format(path: Path, format: str | None) -> str:
 
 
 def export_commands(commands_path: str | Path, output: str | Path, *, format: str | None = None,
-                    machine: str | Path = "zhang2013", controller: str = "",
+                    machine: str | Path, controller: str = "",
                     tolerance: np.ndarray | None = None) -> ExportResult:
     """Write a command file (``t,X,Y,Z,A,C[,...]``) as G-code, a halstreamer file or a table.
 
-    G-code and halstreamer files are programs a machine runs: the commands must keep the
+    ``machine`` (built-in name or machine file) has no default: its limits decide what may be
+    written. G-code and halstreamer files are programs a machine runs: the commands must keep the
     machine's limits (checked first; :class:`~precontour.errors.MachineLimitError` names the
     worst excess otherwise), and a halstreamer file needs samples at the servo period.
     """
@@ -418,6 +494,7 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     return ExportResult(output, format, traj.n_samples, program.n_blocks)
 
 
-__all__ = ["EXPORT_FORMATS", "RunOutputs", "RunResult", "ExportResult", "check_run_outputs",
+__all__ = ["EXPORT_FORMATS", "LargestError", "RunOutputs", "RunResult", "ExportResult",
+           "check_run_outputs", "largest_error",
            "export_commands", "export_format", "load_program_trajectory", "run_program",
            "write_run_outputs"]

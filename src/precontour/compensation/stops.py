@@ -29,8 +29,9 @@ from typing import Callable
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-#: Learning passes against the machine model by default (CLI ``compensate --learn``).
-DEFAULT_LEARNING_PASSES = 4
+from ..defaults import DEFAULT_LEARNING_PASSES
+
+# DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
 #: every 10 ms from 0 to 100 ms. Why a grid (issue 13 section 1, "a settling criterion for the
 #: final dwell"): static friction holds each axis wherever it comes to rest, and while the

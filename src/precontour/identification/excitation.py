@@ -16,17 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..defaults import DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR, DEFAULT_TRAVEL_ROTARY
 from ..errors import InputError
 from ..machine.drives import AXES, ROTARY_AXES
 from ..tables import trajectory_columns, write_columns, write_text
 from ..toolpath.writers import ProgramInfo, gcode_program, halstreamer_lines
 from ..trajectory.sampled import Trajectory
 
-#: Default half travel of the excitation, mm (X, Y, Z) and rad (A, C).
-DEFAULT_TRAVEL_LINEAR = 25.0
-DEFAULT_TRAVEL_ROTARY = 0.5
-#: Default fraction of each drive's v_max, a_max, j_max the motion may use.
-DEFAULT_SAFETY = 0.5
+# DEFAULT_TRAVEL_LINEAR, DEFAULT_TRAVEL_ROTARY (half travel, mm and rad) and DEFAULT_SAFETY
+# (the fraction of each drive's v_max, a_max, j_max used) are defined in precontour.defaults.
 #: Multi-sine band, Hz, and number of components.
 MULTISINE_BAND = (0.5, 80.0)
 MULTISINE_COMPONENTS = 24

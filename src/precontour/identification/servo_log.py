@@ -31,12 +31,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..defaults import LOG_FORMATS as FORMATS
 from ..errors import InputError
 from ..machine.drives import AXES
 from ..tables import SUPPORTED_SUFFIXES, read_columns
 from ..trajectory.sampled import check_uniform_time
 
-FORMATS: tuple[str, ...] = ("table", "halsampler", "halscope")
 COMMAND_COLUMNS: tuple[str, ...] = AXES
 ACTUAL_COLUMNS: tuple[str, ...] = tuple(f"{a}_act" for a in AXES)
 CURRENT_COLUMNS: tuple[str, ...] = tuple(f"I_{a}" for a in AXES)

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping
@@ -23,13 +22,13 @@ from typing import Mapping
 from ._config import ConfigTable
 from .controllers import CONTROLLER_TYPES, Controller, check_closed_loop_bases
 from .drives import AXES, Drive, Friction
+from ..defaults import BUILTIN_MACHINES, DEFAULT_SERVO_PERIOD
+from ..defaults import builtin_machine_text as _builtin_text
 from ..errors import MachineFileError
 from ..files import check_input_file
 from .kinematics import KINEMATICS_TYPES
 
-#: Built-in machines: the paper's, and LinuxCNC's two trunnion-table simulator configurations
-#: (``configs/sim/axis/vismach/5axis/table-rotary-tilting``).
-BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt")
+# BUILTIN_MACHINES, the names of the built-in machines, is defined in precontour.defaults.
 
 
 @dataclass(frozen=True)
@@ -167,7 +166,7 @@ def builtin_machine_text(name: str = "zhang2013") -> str:
     if name not in BUILTIN_MACHINES:
         raise MachineFileError(f"unknown built-in machine {name!r}; choose one of "
                                f"{', '.join(BUILTIN_MACHINES)}")
-    return resources.files("precontour.machine.data").joinpath(f"{name}.toml").read_text()
+    return _builtin_text(name)
 
 
 def parse_machine(text: str, source: str = "<string>") -> Machine:
@@ -179,7 +178,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     top = ConfigTable(data, source, "")
     name = top.get_str("name", default="unnamed")
     description = top.get_str("description", default="")
-    servo_period = top.get_float("servo_period", default=0.001, above=0.0)
+    servo_period = top.get_float("servo_period", default=DEFAULT_SERVO_PERIOD, above=0.0)
 
     kin_table = top.get_table("kinematics")
     kin_type = kin_table.get_str("type", choices=tuple(KINEMATICS_TYPES))

@@ -25,12 +25,13 @@ import numpy as np
 from scipy.interpolate import PPoly
 from scipy.linalg.lapack import dgbsv
 
+from ..defaults import FIT_TOL_LINEAR as DEFAULT_TOL_LINEAR
+from ..defaults import FIT_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError
 
-#: Default fit tolerances: 1 um for linear axes (mm), 1 urad for rotary axes (rad).
-DEFAULT_TOL_LINEAR = 1e-3
-DEFAULT_TOL_ROTARY = 1e-6
+# DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default fit tolerances (1 um on the linear
+# axes, 1 urad on the rotary ones), are defined in precontour.defaults.
 #: Samples per segment of the first fit (spec section 3: n = floor(Ns / 50)).
 INITIAL_SAMPLES_PER_SEGMENT = 50
 #: A C3 quintic at rest at both ends needs three segments (4 knots) to interpolate freely.

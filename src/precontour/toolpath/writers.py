@@ -25,12 +25,13 @@ from typing import Iterator, Sequence
 import numpy as np
 from numba import njit
 
+from ..defaults import GCODE_TOL_LINEAR as DEFAULT_TOL_LINEAR
+from ..defaults import GCODE_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..errors import InputError
 from ..machine.drives import AXES
 
-#: Default decimation tolerances: 1 um on X, Y, Z and 1e-5 rad on A, C (``--tol 0.001,1e-5``).
-DEFAULT_TOL_LINEAR = 1e-3
-DEFAULT_TOL_ROTARY = 1e-5
+# DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default decimation tolerances (1 um on X, Y, Z,
+# 1e-5 rad on A, C: ``--tol 0.001,1e-5``), are defined in precontour.defaults.
 #: Decimals written: X Y Z in mm (5 nm rounding), A C in degrees (8.7e-9 rad rounding).
 LINEAR_DECIMALS = 5
 ANGLE_DECIMALS = 6

@@ -37,11 +37,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..defaults import DEFAULT_FEED
 from ..machine.drives import AXES
 from ..errors import PrecontourError, ToolPathError, plain
 
-#: Default maximum tool tip feed, mm/s (the paper's test path).
-DEFAULT_FEED = 100.0
+# DEFAULT_FEED, the default maximum tool tip feed in mm/s, is defined in precontour.defaults.
 #: Default tool tip acceleration limit, mm/s^2 (0.2 g, a usual contouring setting).
 DEFAULT_ACCELERATION = 2000.0
 #: Default tangential jerk limit, mm/s^3 (50 m/s^3, a usual contouring setting; filter 80 ms).

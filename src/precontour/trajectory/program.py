@@ -53,6 +53,7 @@ import math
 
 import numpy as np
 
+from ..defaults import DEFAULT_CORNER_TOLERANCE as DEFAULT_TOLERANCE
 from ..errors import PrecontourError
 from .feedplan import CHECK_RTOL, axis_limits
 from .generate import DEFAULT_DWELL
@@ -60,8 +61,8 @@ from .sampled import Trajectory
 
 #: The plan aims this fraction below each axis limit; the check uses the full limits.
 MARGIN = 0.98
-#: Default corner tolerance, mm: the blend of a corner passes within this of it.
-DEFAULT_TOLERANCE = 0.01
+# DEFAULT_TOLERANCE, the default corner tolerance in mm (the blend of a corner passes within
+# this of it), is defined in precontour.defaults.
 #: A corner whose blend would need the speed cut below this fraction is a stop instead.
 SHARP_CORNER = 0.5
 #: Corner blends below this (mm) are round-off, not corners.
