@@ -103,10 +103,12 @@ def _usage(name: str, parser: argparse.ArgumentParser) -> str:
     groups = {id(a): g for g in parser._mutually_exclusive_groups for a in g._group_actions}
     done = set()
     for action in parser._actions:
-        if isinstance(action, argparse._HelpAction) or id(action) in done:
+        if isinstance(action, argparse._HelpAction) or id(action) in done \
+                or action.help is argparse.SUPPRESS:
             continue
         group = groups.get(id(action))
-        members = [action] if group is None else group._group_actions
+        members = [action] if group is None else [
+            a for a in group._group_actions if a.help is not argparse.SUPPRESS]
         done.update(id(a) for a in members)
         text = " | ".join(_usage_word(a) for a in members)
         required = (action.required if group is None else group.required) or (
@@ -130,7 +132,7 @@ def _usage_word(action: argparse.Action) -> str:
 def _arguments_table(parser: argparse.ArgumentParser, prog: str, replace: dict) -> list[str]:
     lines = ["| argument | value | default | meaning |", "|---|---|---|---|"]
     for action in parser._actions:
-        if isinstance(action, argparse._HelpAction):
+        if isinstance(action, argparse._HelpAction) or action.help is argparse.SUPPRESS:
             continue
         help_text = _expand(action, prog)
         for old, new in replace.items():
@@ -149,15 +151,24 @@ def reference_text(parser: argparse.ArgumentParser | None = None) -> str:
     subparsers = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     commands = subparsers[0] if subparsers else None
     one_line = {a.dest: a.help for a in commands._choices_actions} if commands else {}
+    # a command's aliases map to the same parser: one section per parser, aliases named in it
+    names, aliases = [], {}
+    for name, sub in (commands.choices.items() if commands else ()):
+        first = next((n for n in names if commands.choices[n] is sub), None)
+        if first is None:
+            names.append(name)
+        else:
+            aliases.setdefault(first, []).append(name)
     out = [HEADER]
-    names = list(commands.choices) if commands else []
     out.append("| command | what it does |")
     out.append("|---|---|")
     out += [f"| [`{name}`](#precontour-{name}) | {_cell(one_line.get(name, ''))} |"
             for name in names]
     out.append("")
-    out.append("Options of `precontour` itself: `--version` prints the version, `--help` the "
-               "list of commands.")
+    own = [a for a in parser._actions if a.option_strings
+           and not isinstance(a, argparse._SubParsersAction) and a.help is not argparse.SUPPRESS]
+    out.append("Options of `precontour` itself: " + "; ".join(
+        f"{_name(a)}: {_cell(_expand(a, parser.prog))}" for a in own) + ".")
     for name in names:
         sub = commands.choices[name]
         out.append("")
@@ -165,6 +176,9 @@ def reference_text(parser: argparse.ArgumentParser | None = None) -> str:
         out.append("")
         if one_line.get(name):
             out.append(f"{_cell(one_line[name])[:1].upper()}{_cell(one_line[name])[1:]}.")
+            out.append("")
+        if aliases.get(name):
+            out.append("Also spelt " + ", ".join(f"`{a}`" for a in aliases[name]) + ".")
             out.append("")
         if sub.description:
             out.append(" ".join(sub.description.split()))
