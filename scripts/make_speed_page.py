@@ -52,7 +52,8 @@ def description(name: str) -> str:
     """The first line of a benchmark's docstring (read without importing it)."""
     tree = ast.parse((BENCHMARKS / f"bench_{name}.py").read_text())
     doc = ast.get_docstring(tree) or f"bench_{name}.py"
-    return " ".join(doc.split("\n\n")[0].split())
+    text = " ".join(doc.split("\n\n")[0].split()).replace("``", "`")
+    return text.removesuffix(" (a script, not a test).").rstrip(".")
 
 
 def run_benchmark(name: str, args: list[str]) -> str:

@@ -263,7 +263,8 @@ def main() -> None:
                f"on {len(met_comp)} of {len(paths)} paths"
                + (f" (not on {', '.join(n for n in paths if n not in met_comp)})."
                   if len(met_comp) < len(paths) else "."))
-    options = [f"controller {args.controller}", f"learning {args.learn} passes"]
+    options = [f"controller {args.controller}",
+               f"learning {args.learn} pass" + ("" if args.learn == 1 else "es")]
     if args.quantize:
         options.append("quantised encoder (0.1 um / 1 urad)")
     if args.friction_mismatch:
