@@ -1,4 +1,4 @@
-"""Measure identification on a hidden plant (README, "Calibrating to your machine").
+"""Measure identification on a hidden plant (docs/identification-measured.md).
 
 The hidden plant is zhang2013 with each drive's J and B changed by 20-30 % (factors below),
 run by the virtual machine as the realistic machine (discrete controller at 1 kHz, Stribeck
