@@ -346,25 +346,3 @@ def test_machines_template_is_refused_for_unknown_types(capsys):
     with pytest.raises(SystemExit):
         main(["machines", "--template", "nope"])
     assert "invalid choice: 'nope'" in capsys.readouterr().err
-
-
-def test_cli_reference_script_covers_every_command_and_option():
-    import argparse
-    import importlib.util
-    from pathlib import Path
-
-    from precontour.cli import build_parser
-    script = Path(__file__).parents[1] / "scripts" / "make_cli_reference.py"
-    spec = importlib.util.spec_from_file_location("make_cli_reference", script)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    text = module.reference()
-    commands = module.subcommands(build_parser())
-    assert set(commands) >= {"run", "export", "machines", "demo", "compare"}
-    for name, parser in commands.items():
-        section = text.split(f"## `precontour {name}`\n", 1)[1].split("\n## ", 1)[0]
-        for action in parser._actions:
-            if isinstance(action, argparse._HelpAction):
-                continue
-            for option in action.option_strings or [action.metavar or action.dest]:
-                assert f"`{option}" in section, (name, option)
