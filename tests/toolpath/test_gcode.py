@@ -328,9 +328,25 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 Y0 Z0 A0 C0\nG1 X1\n", r"line 2, word 'G1': feed move without a feed rate"),
     ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X1 F10\nG94 G1 X2\n", r"line 3, word 'G1': feed move without"),
     ("G0 X0\nG95\n", r"line 2, word 'G95': feed per revolution \(G95\) is not supported"),
-    ("G0 X0\nG28 G91 Z0\n", r"line 2, word 'G28': G28 \(return through a reference point\)"),
-    ("G0 X0\nG53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\)"),
-    ("G0 X0\nG10 L2 P1 X0\n", r"line 2, word 'G10': G10 \(writing offset and tool tables\)"),
+    ("G0 X0\nG91 G53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\) "
+                              r"cannot be incremental \(G91\)"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X2 I1 F10\nG53 Z0\n", r"line 3, word 'G53': G53 .* needs G0 or "
+                                                  r"G1"),
+    ("G0 X0\nG28 G0 X1\n", r"line 2, word 'G0': G28 and G0 both use the axis words"),
+    ("G0 X0\nG28 G53 Z1\n", r"line 2, word 'G53': two codes of one modal group \(G28, G53\)"),
+    ("G0 X0\nG10 L1 P1 Z0\n", r"line 2, word 'L1': G10 L1 is not supported \(only G10 L2 and "
+                             r"G10 L20 set work offsets"),
+    ("G0 X0\nG10 L2 P10 X0\n", r"line 2, word 'P10': G10 L2/L20 needs P0 .* P9"),
+    ("G0 X0\nG10 L2 P1 R30\n", r"line 2, word 'R30': G10 R \(a rotated coordinate system\)"),
+    ("G0 X0\nG54.1 X1\n", r"line 2, word 'G54.1': G54.1 needs the number of its work "
+                          r"offset, P1 ... P300"),
+    ("G0 X0\nG54.1 P301\n", r"line 2, word 'P301': G54.1 P301: the extended work offsets"),
+    ("G0 X0\nG92\n", r"line 2, word 'G92': G92 needs at least one axis word"),
+    ("G0 X0\nG92 Y1\n", r"line 2, word 'Y1': G92 sets axis Y relative to its position, "
+                        r"which is not known yet"),
+    ("G0 X0\nG28.1\n", r"line 2, word 'G28.1': G28.1 stores the current position, which is "
+                       r"not known yet"),
+    ("G0 X0\nM61 Q1 L2\n", r"line 2, word 'L2': unsupported word 'L2' \(L is read with G10\)"),
     ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycles \(G81\)"),
     ("G0 X0\nG41 D1\n", r"line 2, word 'G41': cutter radius compensation"),
     ("G0 X0\nG5.1 X1\n", r"line 2, word 'G5.1': unsupported G code G5.1"),
@@ -355,7 +371,7 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 X1\n", r"line 1, word 'X1': word X appears twice in the block"),
     ("G0 X0\nG1 X1 F100 F200\n", r"line 2, word 'F200': word F appears twice in the block"),
     ("G0 X0\nG1 X1 F100\nG1 Q5 X2\n", r"line 3, word 'Q5': unsupported word 'Q5' \(Q is read "
-                                      r"with G64\)"),
+                                      r"with G64, M61, M66-M68\)"),
     ("G0 X0\nG1 X1 F100 \u00e9\n", r"line 2: cannot parse '\u00c9'"),
     ("G0 X0\nG4 G1 X1 P1\n", r"line 2, word 'G4': dwell \(G4\) and a motion code"),
     ("G0 X0\nG4\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
@@ -404,7 +420,7 @@ def test_real_program_idioms(machine, tmp_path):
     assert program.start_line == 7
     kept = dict(program.passthrough)
     assert kept[4] == "G17 G40" and kept[6] == "T1 M6"
-    assert kept[7] == "G54 S630 M03" and kept[8] == "M08" and kept[14] == "M09"
+    assert kept[7] == "S630 M03" and kept[8] == "M08" and kept[14] == "M09"
     np.testing.assert_allclose(program.duration[1:4],
                                [11.625 / 300 * 60, 0.275 / 600 * 60, 60 / 67.8035], rtol=1e-12)
 
@@ -467,3 +483,135 @@ def test_plain_blocks_read_like_the_general_path(machine, tmp_path, modes):
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-12)  # G91 sums in another order
     np.testing.assert_allclose(fast.duration, slow.duration, rtol=1e-13)
     np.testing.assert_allclose(fast.feed, slow.feed, rtol=1e-13)
+
+
+# --------------------------------------------------------------------------- machine data
+
+
+GCODE_TABLE = """
+[gcode]
+g28 = [0.0, 0.0, 400.0, 0.0, 0.0]
+g30 = [-100.0, 50.0, 380.0, 0.0, 0.5]
+
+[gcode.work_offsets]
+G54 = [10.0, 20.0, 30.0, 0.0, 0.0]
+G55 = [100.0, 0.0, 0.0, 0.0, 0.5]
+"G59.3" = [0.0, -5.0, 0.0, 0.0, 0.0]
+"G54.1 P2" = [1.0, 2.0, 3.0, 0.0, 0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def shop_machine():
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    return parse_machine(builtin_machine_text() + GCODE_TABLE, "shop.toml")
+
+
+def test_work_offsets_from_the_machine_file(shop_machine, tmp_path):
+    # LinuxCNC: absolute position = words + work offset (+ G92); an axis without a word keeps
+    # its absolute position when the offset changes
+    text = ("G0 X1 Y2 Z3 A0 C0\nG55 G1 X1 F600\nG59.3 G0 Y1\nG54.1 P2 G0 X0 Y0\nG54 Z0\n"
+            "C10\nG55 C10\n")
+    program = read(tmp_path, shop_machine, text)
+    np.testing.assert_allclose(program.start, [11, 22, 33, 0, 0])
+    expected = [[101, 22, 33, 0, 0], [101, -4, 33, 0, 0], [1, 2, 33, 0, 0], [1, 2, 30, 0, 0],
+                [1, 2, 30, 0, deg(10)], [1, 2, 30, 0, 0.5 + deg(10)]]
+    np.testing.assert_allclose(program.q, expected, rtol=0, atol=1e-12)
+    assert program.notices == ()
+    assert all("G55" not in text and "G54" not in text for _, text in program.passthrough)
+
+
+def test_work_offsets_not_given_are_identity_said_once(machine, tmp_path):
+    program = read(tmp_path, machine, "G55 G0 X1 Y2 Z3 A0 C0\nG1 X2 F60\nG56 X3\nG54.1 P9 X4\n")
+    np.testing.assert_allclose(program.q[:, 0], [2, 3, 4])
+    assert program.notices == (
+        f"{tmp_path / 'prog.ngc'}, line 1: the machine file gives no work offset G55 "
+        "([gcode.work_offsets]); work offsets it does not give are taken as zero (identity)",)
+
+
+def test_g53_moves_in_machine_coordinates(shop_machine, tmp_path):
+    text = ("G0 X1 Y2 Z3 A0 C0\nG53 G0 Z350\nG53 G1 X-5 F600\nG1 Y0\nG53 X0 Y0 Z0\n"
+            "G1 X5 Y5\n")
+    program = read(tmp_path, shop_machine, text)
+    np.testing.assert_allclose(program.q[:4], [[11, 22, 350, 0, 0], [-5, 22, 350, 0, 0],
+                                               [-5, 20, 350, 0, 0], [0, 0, 0, 0, 0]],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(program.rapid[:4], [True, False, False, False])
+    np.testing.assert_allclose(program.duration[1], 16 / 600 * 60)
+    # after G53 the words are work coordinates again (G54: +10, +20, +30)
+    np.testing.assert_allclose(program.q[-1], [15, 25, 0, 0, 0], atol=1e-12)
+
+
+def test_g53_in_tcp_mode_is_a_joint_space_move(machine, tmp_path):
+    text = ("G43.4 H1\nG0 X10 Y-5 Z2 A-30 C20\nG53 G0 Z450\nG53 G1 A0 C0 F600\nG1 Z1 F60\n"
+            "G49\n")
+    program = read(tmp_path, machine, text)
+    kin = machine.kinematics
+    first = kin.linear_axes(np.array([10.0, -5.0, 2.0]), deg(-30), deg(20))
+    np.testing.assert_allclose(program.q[0], [*first[:2], 450, deg(-30), deg(20)], atol=1e-9)
+    np.testing.assert_allclose(program.q[1], [*first[:2], 450, 0, 0], atol=1e-9)
+    np.testing.assert_array_equal(program.tcp_move, [False, False, True])
+    # rotary-only G94 move: degrees / F
+    np.testing.assert_allclose(program.duration[1], math.hypot(30, 20) / 600 * 60)
+    # the TCP move starts from the tip where the joint-space move left it
+    tip, _ = kin.forward(program.q[1])
+    end, _ = kin.forward(program.q[2])
+    np.testing.assert_allclose(end, [tip[0], tip[1], 1.0], atol=1e-9)
+
+
+def test_g28_and_g30_use_the_machine_file_reference(shop_machine, tmp_path):
+    text = ("G0 X1 Y2 Z3 A0 C0\nG91 G28 Z0\nG90 G28 X5\nG30\nG0 X0 Y0 Z0\nG28.1\nG0 X1\n"
+            "G28\n")
+    program = read(tmp_path, shop_machine, text)
+    q = program.q
+    np.testing.assert_allclose(q[0], [11, 22, 33, 0, 0])          # G91 Z0: no intermediate move
+    np.testing.assert_allclose(q[1], [11, 22, 400, 0, 0])          # then Z to the reference
+    np.testing.assert_allclose(q[2], [15, 22, 400, 0, 0])          # intermediate X5 (+ G54)
+    np.testing.assert_allclose(q[3], [0, 22, 400, 0, 0])           # then X only
+    np.testing.assert_allclose(q[4], [-100, 50, 380, 0, 0.5])      # G30: every axis
+    np.testing.assert_allclose(q[5], [10, 20, 30, 0, 0.5])
+    np.testing.assert_allclose(q[6], [11, 20, 30, 0, 0.5])
+    np.testing.assert_allclose(q[7], [10, 20, 30, 0, 0.5])         # the G28.1 position
+    assert program.rapid.all() and program.notices == ()
+
+
+def test_g28_without_a_reference_takes_the_machine_origin(machine, tmp_path):
+    program = read(tmp_path, machine, "G91 G28 Z0\nG90 G0 X1 Y2 A0 C0\nG1 X2 F60\nG28\n")
+    assert program.start_line == 2
+    np.testing.assert_allclose(program.start, [1, 2, 0, 0, 0])
+    np.testing.assert_allclose(program.q[-1], [0, 0, 0, 0, 0])
+    assert program.notices == (
+        f"{tmp_path / 'prog.ngc'}, line 1: the machine file gives no reference position for "
+        "G28 ([gcode] g28); the machine origin (all axes 0) is taken, as in LinuxCNC's "
+        "default parameters",)
+
+
+def test_g10_and_g92_offsets(machine, tmp_path):
+    # the numbers of LinuxCNC's rs274 on the same program (absolute = canonical + G5x + G92)
+    text = ("G10 L2 P1 X10 Y20 Z30\nG10 L2 P2 X100 C30\nG54 G0 X1 Y2 Z3 A0 C0\n"
+            "G55 G1 X1 F600\nG10 L2 P1 X0 Y0 Z0\nG54 G0 X5\nG92 X1\nG10 L20 P2 X0\n"
+            "G55 X0 Y0\nG1 X2 F100\nG92.1\nG0 X2\nG92 Y3\nG92.2\nG0 Y1\nG92.3\nG0 Y1\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_allclose(program.start, [11, 22, 33, 0, 0])
+    x_y = [[101, 22], [5, 22], [5, 0], [7, 0], [3, 0], [3, 1], [3, -2]]
+    np.testing.assert_allclose(program.q[:, :2], x_y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(program.q[0, 4], 0.0, atol=1e-15)   # C kept when G55 adds 30
+
+
+def test_tcp_on_after_positioning_keeps_the_known_position(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X10. Y0.\nG43.4 H1\nG1 Z-1. F100\nG1 X0\n")
+    assert program.notices == (f"{tmp_path / 'prog.ngc'}, line 3: axes Z A C were not "
+                               "programmed before the first feed move; taken as 0",)
+    np.testing.assert_allclose(program.start, [10, 0, 0, 0, 0])
+    tip0, _ = machine.kinematics.forward(program.start)
+    tips, _ = machine.kinematics.forward(program.q)
+    np.testing.assert_allclose(tips, [[tip0[0], tip0[1], -1], [0, tip0[1], -1]], atol=1e-9)
+    assert program.tcp_move.all()
+
+
+def test_m61_and_io_words_are_kept(machine, tmp_path):
+    text = "G0 X0 Y0 Z0 A0 C0\nM61 Q1\nM64 P2\nM66 E0 L0\nM68 E3 Q1.5\nG1 X1 F60\n"
+    program = read(tmp_path, machine, text)
+    assert dict(program.passthrough) == {2: "M61 Q1", 3: "M64 P2", 4: "M66 E0 L0",
+                                         5: "M68 E3 Q1.5"}
+    assert program.notices == ()

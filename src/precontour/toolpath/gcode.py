@@ -18,14 +18,25 @@ What is read, block by block with the usual modal state:
   axes are taken as programmed and the linear axes follow from the machine's kinematics;
 - stops: G4 dwell (P or X seconds), M0, M1, M6 (tool change), M2/M30 (end; later lines are
   not read);
+- coordinates as LinuxCNC keeps them: the absolute position is the words plus the work offset
+  (G54-G59.3, Fanuc's G54.1 P1-P300; from the machine file's ``[gcode.work_offsets]``, else
+  zero, said once) and the G92 offset (G92, G92.1, G92.2, G92.3); G10 L2/L20 Pn set a work
+  offset; G53 moves in machine coordinates (in TCP mode: the machine axes, a move in joint
+  space); G28/G30 rapid through the given point to the machine file's reference position
+  (``[gcode] g28``/``g30``, else the machine origin, said once) for the given axes (all
+  without axis words), in machine coordinates; G28.1/G30.1 store the current position;
+  tool length offsets (G43 H) are not applied (the machine file's kinematics carries the tool
+  length);
 - kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
-  G17-G19, G40, G43, G49, G54-G59 (identity offsets), G61, G64, G80; any other M code is kept
-  too, with a one-line notice (LinuxCNC programs switch TCP with remapped M428/M429). G64 P
-  (path tolerance) and G61/G61.1 (exact path: 0) are also kept per move for the timing.
+  M61 Q, M62-M68 with their P E L Q words, G17-G19, G40, G43, G49, G61, G64, G80; any other M
+  code is kept too, with a one-line notice (LinuxCNC programs switch TCP with remapped
+  M428/M429). G64 P (path tolerance) and G61/G61.1 (exact path: 0) are also kept per move for
+  the timing.
 
 Everything else -- subroutines and control flow (O-word sub/call/if/while, M98/M99, G65),
-macros and variables (``#``, ``[ ]``), G10, G28/G30, G53, G92, cutter compensation, canned
-cycles, G95 -- is one :class:`~precontour.errors.ProgramError` naming the file, line and word.
+macros and variables (``#``, ``[ ]``), G10 L1/L10/L11 (tool tables), cutter compensation,
+canned cycles, G95 -- is one :class:`~precontour.errors.ProgramError` naming the file, line
+and word.
 """
 
 from __future__ import annotations
@@ -40,6 +51,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..errors import InputError, ProgramError
+from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
 from ._common import INCH, ReadReport, finish, read_text
 from .program import Program, Stop
 
@@ -63,25 +75,21 @@ AXIS_WORDS = ("X", "Y", "Z", "A", "C")
 _MOTION = {0: 0, 10: 1, 20: 2, 30: 3}
 _PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
 #: G codes accepted and kept for an output program (they do not change the axis commands).
-PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 490, 540, 550, 560, 570, 580, 590, 610,
-                           611, 640, 800])
-_MODE_G = frozenset([40, 200, 210, 434, 435, 900, 901, 910, 911, 930, 940])
+PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 490, 610, 611, 640, 800])
+#: Work offsets G54-G59.3 and G54.1 (Pn), in tenths.
+_WORK_OFFSET_G = (540, 550, 560, 570, 580, 590, 591, 592, 593, 541)
+#: Non-modal codes (RS274/NGC group 0): at most one per block.
+_NON_MODAL = (40, 100, 280, 281, 300, 301, 530, 920, 921, 922, 923)
+#: Non-modal codes that read the block's axis words themselves.
+_AXIS_WORD_CODES = frozenset([100, 280, 300, 920])
+_MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940])
 _MODAL_GROUPS = (frozenset(_MOTION), frozenset(_PLANES), frozenset([200, 210]),
                  frozenset([900, 910]), frozenset([901, 911]), frozenset([930, 940]),
-                 frozenset([430, 434, 435, 490]))
+                 frozenset([430, 434, 435, 490]), frozenset(_WORK_OFFSET_G),
+                 frozenset(_NON_MODAL), frozenset([610, 611, 640]))
+_KNOWN_G = (frozenset(_MOTION) | PASSTHROUGH_G | _MODE_G | frozenset(_WORK_OFFSET_G)
+            | frozenset(_NON_MODAL))
 _UNSUPPORTED_G = {
-    100: "G10 (writing offset and tool tables) is not supported",
-    280: "G28 (return through a reference point) is not supported: the machine file has no "
-         "reference position; program the move",
-    281: "G28.1 is not supported",
-    300: "G30 (return through a reference point) is not supported: program the move",
-    301: "G30.1 is not supported",
-    530: "G53 (move in machine coordinates) is not supported: program the move in the "
-         "work coordinates",
-    920: "G92 (coordinate offsets) is not supported",
-    921: "G92.1 (coordinate offsets) is not supported",
-    922: "G92.2 (coordinate offsets) is not supported",
-    923: "G92.3 (coordinate offsets) is not supported",
     950: "feed per revolution (G95) is not supported; use G94 or G93",
     410: "cutter radius compensation (G41) is not supported; post-process with the tool "
          "radius applied",
@@ -92,10 +100,17 @@ _UNSUPPORTED_G = {
     680: "coordinate rotation (G68) is not supported",
 }
 _STOP_M = {0: "program stop", 1: "optional stop", 6: "tool change", 2: "end", 30: "end"}
-_KNOWN_M = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30])
+#: M codes read (stops, spindle, coolant, overrides, tool number, I/O).
+_KNOWN_M = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30, 48, 49, 50, 51, 52, 53, 61, 62, 63,
+                      64, 65, 66, 67, 68])
+#: Words that M codes read (LinuxCNC): M61 Q (tool number), M62-M65 P (digital output),
+#: M66 P/E L Q (wait for an input), M67/M68 E Q (analog output), M50-M53 P (overrides).
+_M_WORDS = {61: "Q", 62: "P", 63: "P", 64: "P", 65: "P", 66: "PELQ", 67: "EQ", 68: "EQ",
+            50: "P", 51: "P", 52: "P", 53: "P"}
 _SUBROUTINE_M = {98: "subprogram calls (M98) are not supported",
                  99: "subprogram returns (M99) are not supported"}
 _PASSTHROUGH_WORDS = frozenset("STHD")
+_ZERO = (0.0,) * 5
 
 _WORD = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^()]*)\)")
@@ -144,13 +159,16 @@ def read_program(path: str | Path, machine, *, tcp: bool = False,
     source = str(path)
     text = read_text(path)
     axes = _axis_letters(machine)
-    return _Reader(source, kinematics, axes, tcp, block_delete, arc_tolerance).run(text)
+    settings = getattr(machine, "gcode", None) or GcodeSettings()
+    return _Reader(source, kinematics, axes, tcp, block_delete, arc_tolerance,
+                   settings).run(text)
 
 
 class _Reader:
     """The modal state of the program while it is read, block by block."""
 
-    def __init__(self, source, kinematics, axes, tcp, block_delete, arc_tolerance):
+    def __init__(self, source, kinematics, axes, tcp, block_delete, arc_tolerance,
+                 settings=GcodeSettings()):
         self.source, self.kinematics, self.axes = source, kinematics, axes
         self.axis_index = {a: i for i, a in enumerate(axes)}
         number = r"([-+]?(?:\d+\.?\d*|\.\d+))"
@@ -167,7 +185,20 @@ class _Reader:
         self.arc_absolute = False
         self.inverse_time = False
         self.feed = math.nan          # G94 feed, mm/min
-        self.prog = [math.nan] * 5    # programmed coordinates (tip + rotary in TCP), mm, deg
+        # absolute programmed coordinates (tip + rotary in TCP mode, else machine axes), mm
+        # and deg: the words plus the work and G92 offsets; NaN: not known yet
+        self.prog = [math.nan] * 5
+        # partial positions at TCP switches before every axis was known (see resolve)
+        self.deferred = []
+        # machine-file data in the reader's units (mm, deg)
+        self.offsets = {name: _degrees(v) for name, v in settings.work_offsets.items()}
+        self.reference = {280: None if settings.g28 is None else _degrees(settings.g28),
+                          300: None if settings.g30 is None else _degrees(settings.g30)}
+        self.work_offset = "G54"
+        self.g5x = list(self.offsets.get("G54", _ZERO))
+        self.g92 = list(_ZERO)
+        self.g92_stored = list(_ZERO)
+        self.said_offsets = self.said_reference = False
         self.start = None
         self.start_line = 0
         self.start_tcp = tcp
@@ -242,7 +273,9 @@ class _Reader:
         if self.incremental:
             target = prog + np.cumsum(np.where(given, words, 0.0), axis=0)
         else:
-            target = np.column_stack([_ffill(words[:, i], prog[i]) for i in range(5)])
+            offset = np.add(self.g5x, self.g92)
+            target = np.column_stack([_ffill(words[:, i] + offset[i], prog[i])
+                                      for i in range(5)])
         if not (np.abs(target) <= MAX_COORDINATE).all():
             return False
         moving = given.any(axis=1)
@@ -359,11 +392,10 @@ class _Reader:
         # G codes: check, then apply the modes in execution order (RS274/NGC).
         seen_groups = {}
         motion_here = None
-        dwell = False
         for code, word in g_codes:
             if code in _UNSUPPORTED_G:
                 self.fail(_UNSUPPORTED_G[code], word)
-            if code not in _MOTION and code not in PASSTHROUGH_G and code not in _MODE_G:
+            if code not in _KNOWN_G:
                 if 730 <= code <= 890 and code != 800:
                     self.fail(f"canned cycles ({word}) are not supported", word)
                 self.fail(f"unsupported G code {_g_name(code)}", word)
@@ -373,17 +405,15 @@ class _Reader:
                         self.fail(f"two codes of one modal group ({seen_groups[group_index]}, "
                                   f"{_g_name(code)}) in one block", word)
                     seen_groups[group_index] = _g_name(code)
-        moves_axes = False
-        for letter in spelled:
-            if letter in self.axis_index:
-                moves_axes = True
-            elif letter not in "FIJKRPQ" and letter not in _PASSTHROUGH_WORDS:
-                self.fail(f"unsupported word {spelled[letter]!r} (axes are "
-                          f"{' '.join(self.axes)})", spelled[letter])
+        codes = {code for code, _ in g_codes}
+        g_word = {code: word for code, word in g_codes}
+        non_modal = next((code for code in _NON_MODAL if code in codes), None)
+        m_numbers = set()
         for code, word in m_codes:
             if code % 10:
                 self.fail(f"unsupported M code {word}", word)
             number = code // 10
+            m_numbers.add(number)
             if number in _SUBROUTINE_M:
                 self.fail(_SUBROUTINE_M[number], word)
             if number not in _KNOWN_M and number not in self.unknown_m:
@@ -391,7 +421,28 @@ class _Reader:
                 self.notices.append(f"{self.source}, line {self.row}: M{number} is not a code "
                                     "precontour knows; kept as a pass-through line")
             self.skipped[f"M{number}"] += 1
-        codes = {code for code, _ in g_codes}
+        # the words an M code of this block reads (M61 Q, M62-M68 P E L Q)
+        m_words = set().union(*(_M_WORDS.get(n, "") for n in m_numbers))
+        moves_axes = False
+        for letter in spelled:
+            if letter in self.axis_index:
+                moves_axes = True
+            elif (letter not in "FIJKRPQL" and letter not in _PASSTHROUGH_WORDS
+                  and letter not in m_words):
+                self.fail(f"unsupported word {spelled[letter]!r} (axes are "
+                          f"{' '.join(self.axes)})", spelled[letter])
+        if 541 in codes and "P" not in spelled:
+            self.fail("G54.1 needs the number of its work offset, P1 ... P300", g_word[541])
+        if "L" in spelled and not (100 in codes or "L" in m_words):
+            self.fail(f"unsupported word {spelled['L']!r} (L is read with G10)", spelled["L"])
+        if "E" in spelled and "E" not in m_words:
+            self.fail(f"unsupported word {spelled['E']!r} (E is read with M66-M68)",
+                      spelled["E"])
+        if non_modal in _AXIS_WORD_CODES and moves_axes and any(
+                code in _MOTION for code in codes):
+            motion_word = next(g_word[c] for c in codes if c in _MOTION)
+            self.fail(f"{_g_name(non_modal)} and {motion_word} both use the axis words of the "
+                      "block", motion_word)
         kept = []  # words an output program keeps, as written, in their order
         for letter, number in words:
             if letter == "G":
@@ -399,7 +450,9 @@ class _Reader:
                 if code in PASSTHROUGH_G:
                     kept.append(letter + number)
                     self.skipped[_g_name(code)] += 1
-            elif letter == "M" or letter in _PASSTHROUGH_WORDS:
+                    if code == 541 and "P" in spelled:
+                        kept.append(spelled["P"])
+            elif letter == "M" or letter in _PASSTHROUGH_WORDS or letter in m_words:
                 if letter != "M":
                     self.skipped[letter] += 1
                 # H goes with G43; with G43.4/G43.5 (TCP, not kept) it would stand alone
@@ -422,8 +475,21 @@ class _Reader:
                 self.fail(f"feed must be positive, got {spelled['F']}", spelled["F"])
             if not self.inverse_time:
                 self.feed = f_word * scale
-        if 40 in codes:
-            dwell = True
+        dwell = 40 in codes
+        for code in (170, 180, 190):
+            if code in codes:
+                self.plane = _PLANES[code]
+        if 434 in codes or 435 in codes or traori:
+            self.set_tcp(True)
+        if (490 in codes or trafoof) and not self.tcp_all:
+            self.set_tcp(False)
+        for code in _WORK_OFFSET_G:
+            if code in codes:
+                self.select_work_offset(code, values, spelled)
+        if 640 in codes:
+            self.path_tolerance = values["P"] * scale if "P" in values else math.nan
+        if 610 in codes or 611 in codes:
+            self.path_tolerance = 0.0
         if 900 in codes:
             self.incremental = False
         if 910 in codes:
@@ -432,17 +498,6 @@ class _Reader:
             self.arc_absolute = True
         if 911 in codes:
             self.arc_absolute = False
-        if 640 in codes:
-            self.path_tolerance = values["P"] * scale if "P" in values else math.nan
-        if 610 in codes or 611 in codes:
-            self.path_tolerance = 0.0
-        for code in (170, 180, 190):
-            if code in codes:
-                self.plane = _PLANES[code]
-        if 434 in codes or 435 in codes or traori:
-            self.set_tcp(True)
-        if (490 in codes or trafoof) and not self.tcp_all:
-            self.set_tcp(False)
         for code in codes:
             if code in _MOTION:
                 motion_here = _MOTION[code]
@@ -450,15 +505,18 @@ class _Reader:
             self.motion = motion_here
 
         # word checks that depend on the codes
-        arc_words = [spelled[k] for k in "IJKR" if k in spelled]
-        is_arc = self.motion in (2, 3) and (moves_axes or motion_here in (2, 3)) and not dwell
+        arc_words = [spelled[k] for k in ("IJK" if 100 in codes else "IJKR") if k in spelled]
+        is_arc = (self.motion in (2, 3) and (moves_axes or motion_here in (2, 3)) and not dwell
+                  and non_modal is None)
         if arc_words and not is_arc:
             self.fail(f"word {arc_words[0]!r} is read only with G2/G3", arc_words[0])
-        if "P" in spelled and not (dwell or 640 in codes or is_arc):
-            self.fail(f"unsupported word {spelled['P']!r} (P is read with G4, G64, G2/G3)",
-                      spelled["P"])
-        if "Q" in spelled and 640 not in codes:
-            self.fail(f"unsupported word {spelled['Q']!r} (Q is read with G64)", spelled["Q"])
+        p_readers = dwell or 640 in codes or is_arc or 541 in codes or 100 in codes
+        if "P" in spelled and not (p_readers or "P" in m_words):
+            self.fail(f"unsupported word {spelled['P']!r} (P is read with G4, G10, G54.1, "
+                      "G64, G2/G3, M62-M66)", spelled["P"])
+        if "Q" in spelled and not (640 in codes or "Q" in m_words):
+            self.fail(f"unsupported word {spelled['Q']!r} (Q is read with G64, M61, M66-M68)",
+                      spelled["Q"])
 
         if dwell:
             if motion_here is not None:
@@ -472,6 +530,22 @@ class _Reader:
             if seconds is None or not seconds >= 0:
                 self.fail("dwell (G4) needs a time P (seconds) >= 0", "G4")
             self.stops.append(Stop(self.n_moves, self.row, "dwell", float(seconds)))
+        elif non_modal in (280, 300):
+            self.reference_return(non_modal, values, spelled, scale, g_word[non_modal])
+        elif non_modal in (281, 301):
+            self.store_reference(non_modal, g_word[non_modal])
+        elif non_modal == 100:
+            self.set_work_offset(values, spelled, scale, g_word[100])
+        elif non_modal in (920, 921, 922, 923):
+            self.axis_offsets(non_modal, values, spelled, scale, g_word[non_modal])
+        elif non_modal == 530:
+            if self.motion not in (0, 1):
+                self.fail("G53 (move in machine coordinates) needs G0 or G1", g_word[530])
+            if self.incremental:
+                self.fail("G53 (move in machine coordinates) cannot be incremental (G91)",
+                          g_word[530])
+            if moves_axes:
+                self.machine_move(self.motion == 0, values, spelled, scale)
         elif moves_axes:
             self.move(values, spelled, scale, g_codes)
 
@@ -492,21 +566,50 @@ class _Reader:
                 self.passthrough.append((self.row, text))
         return end
 
-    # ------------------------------------------------------------------ modes
+    # ------------------------------------------------------------------ coordinates
+    def convert(self, pos, from_tcp: bool, to_tcp: bool) -> list[float]:
+        """A complete position (mm, deg) from one frame to the other: the tool tip in the
+        workpiece frame (TCP) or the machine axes."""
+        if from_tcp == to_tcp:
+            return list(pos)
+        q = np.array(pos, dtype=float)
+        q[3:] = np.radians(q[3:])
+        if from_tcp:
+            xyz = self.kinematics.linear_axes(q[None, :3], q[None, 3:])
+        else:
+            xyz, _ = self.kinematics.forward(q[None, :])
+        return [*map(float, np.asarray(xyz).reshape(3)), *pos[3:]]
+
     def set_tcp(self, on: bool):
         if on == self.tcp:
             return
         if all(math.isfinite(v) for v in self.prog):
-            q = self.machine_axes(np.array([self.prog]), np.array([self.tcp]))[0]
-            if on:
-                P, _ = self.kinematics.forward(q)
-                self.prog = [*map(float, np.asarray(P).reshape(3)), *self.prog[3:]]
-            else:
-                self.prog = [*map(float, q[:3]), *self.prog[3:]]
+            self.prog = self.convert(self.prog, self.tcp, on)
         else:
-            # the linear axes' meaning changes; unknown rotary axes leave them unknown
+            # the linear axes' meaning changes; they follow from this partial position once
+            # the unknown axes are taken as 0 (see resolve)
+            self.deferred.append((list(self.prog), self.tcp))
             self.prog = [math.nan] * 3 + self.prog[3:]
         self.tcp = on
+
+    def resolve(self, target=None):
+        """Take the axes never programmed as 0 (before the first feed move): in the frame they
+        were unknown in, carried through the TCP switches since; one notice names them."""
+        chain = self.deferred + [(list(self.prog), self.tcp)]
+        first = chain[0][0]
+        missing = [self.axes[i] for i in range(5) if not math.isfinite(first[i])]
+        full = [0.0 if not math.isfinite(v) else v for v in first]
+        for (_, frame), (pos, next_frame) in zip(chain[:-1], chain[1:]):
+            full = self.convert(full, frame, next_frame)
+            full = [v if math.isfinite(v) else f for v, f in zip(pos, full)]
+        self.deferred = []
+        if missing:
+            self.notices.append(f"{self.source}, line {self.row}: axes {' '.join(missing)} "
+                                "were not programmed before the first feed move; taken as 0")
+        self.prog = list(full)
+        if target is not None:
+            target = [t if math.isfinite(t) else r for t, r in zip(target, full)]
+        return target
 
     def machine_axes(self, prog: np.ndarray, tcp: np.ndarray) -> np.ndarray:
         """Machine axes (mm, rad) of programmed coordinates (mm, deg) in either mode."""
@@ -516,47 +619,222 @@ class _Reader:
             q[tcp, :3] = self.kinematics.linear_axes(q[tcp, :3], q[tcp, 3:])
         return q
 
+    def select_work_offset(self, code, values, spelled):
+        """G54-G59.3, G54.1 Pn: the machine file's offset, or zero (said once)."""
+        if code == 541:
+            number = values["P"]
+            if number != int(number) or not 1 <= number <= MAX_EXTENDED_OFFSET:
+                self.fail(f"G54.1 {spelled['P']}: the extended work offsets are P1 ... "
+                          f"P{MAX_EXTENDED_OFFSET}", spelled["P"])
+            name = f"G54.1 P{int(number)}"
+        else:
+            name = _g_name(code)
+        self.work_offset = name
+        self.g5x = list(self.offsets.get(name, _ZERO))
+        if name not in self.offsets and not self.said_offsets:
+            self.said_offsets = True
+            self.notices.append(f"{self.source}, line {self.row}: the machine file gives no "
+                                f"work offset {name} ([gcode.work_offsets]); work offsets it "
+                                "does not give are taken as zero (identity)")
+
+    def set_work_offset(self, values, spelled, scale, word):
+        """G10 L2 Pn (the offset itself) and G10 L20 Pn (so that the current position has the
+        given coordinates), n = 0 (the active one), 1-9 (G54 ... G59.3)."""
+        kind = values.get("L")
+        if kind not in (2.0, 20.0):
+            what = spelled.get("L", "without L")
+            self.fail(f"G10 {what} is not supported (only G10 L2 and G10 L20 set work "
+                      "offsets; tool tables are not read)", spelled.get("L", word))
+        number = values.get("P")
+        if number is None or number != int(number) or not 0 <= number <= 9:
+            self.fail("G10 L2/L20 needs P0 (the active work offset) ... P9 (G59.3)",
+                      spelled.get("P", word))
+        if "R" in spelled:
+            self.fail("G10 R (a rotated coordinate system) is not supported", spelled["R"])
+        name = self.work_offset if number == 0 else WORK_OFFSETS[int(number) - 1]
+        offset = list(self.offsets.get(name, _ZERO))
+        for i, letter in enumerate(self.axes):
+            if letter in values:
+                value = values[letter] * (scale if i < 3 else 1.0)
+                if kind == 20.0:
+                    if not math.isfinite(self.prog[i]):
+                        self.fail(f"G10 L20 sets axis {letter} relative to its position, "
+                                  "which is not known yet", spelled[letter])
+                    value = self.prog[i] - self.g92[i] - value
+                offset[i] = value
+        self.offsets[name] = tuple(offset)
+        if name == self.work_offset:
+            self.g5x = offset
+
+    def axis_offsets(self, code, values, spelled, scale, word):
+        """G92 (the current position gets the given coordinates), G92.1 and G92.2 (offsets
+        off; G92.1 also forgets them), G92.3 (the stored offsets again)."""
+        if code == 920:
+            given = [a for a in self.axes if a in values]
+            if not given:
+                self.fail("G92 needs at least one axis word", word)
+            for i, letter in enumerate(self.axes):
+                if letter in values:
+                    if not math.isfinite(self.prog[i]):
+                        self.fail(f"G92 sets axis {letter} relative to its position, which is "
+                                  "not known yet", spelled[letter])
+                    value = values[letter] * (scale if i < 3 else 1.0)
+                    self.g92[i] = self.prog[i] - self.g5x[i] - value
+            self.g92_stored = list(self.g92)
+        elif code == 921:
+            self.g92 = list(_ZERO)
+            self.g92_stored = list(_ZERO)
+        elif code == 922:
+            self.g92 = list(_ZERO)
+        else:
+            self.g92 = list(self.g92_stored)
+
+    def store_reference(self, code, word):
+        """G28.1 / G30.1: the current machine position becomes the reference position."""
+        q = self.machine_position()
+        if not all(math.isfinite(v) for v in q):
+            self.fail(f"{word} stores the current position, which is not known yet", word)
+        self.reference[code - 1] = tuple(q)
+
+    def reference_return(self, code, values, spelled, scale, word):
+        """G28 / G30: a rapid to the given point (if any axis word), then the given axes (all
+        without axis words) to the reference position, in machine coordinates."""
+        name = _g_name(code)
+        reference = self.reference.get(code)
+        if reference is None:
+            reference = _ZERO
+            if not self.said_reference:
+                self.said_reference = True
+                self.notices.append(
+                    f"{self.source}, line {self.row}: the machine file gives no reference "
+                    f"position for {name} ([gcode] {name.lower()}); the machine origin (all "
+                    "axes 0) is taken, as in LinuxCNC's default parameters")
+        given = [i for i, a in enumerate(self.axes) if a in values]
+        if given:
+            target = self.target(values, spelled, scale)
+            self.go(target, True, spelled)
+        machine = [math.nan] * 5
+        for i in (given or range(5)):
+            machine[i] = reference[i]
+        self.go_machine(machine, True, spelled)
+
+    def machine_position(self) -> list[float]:
+        """The machine axes now (mm, deg), NaN where not known."""
+        if not self.tcp:
+            return list(self.prog)
+        if all(math.isfinite(v) for v in self.prog):
+            return self.convert(self.prog, True, False)
+        return [math.nan] * 3 + self.prog[3:]
+
+    def machine_move(self, rapid, values, spelled, scale):
+        """G53: the axis words are machine coordinates (in TCP mode: the machine axes, a move
+        in joint space)."""
+        machine = [math.nan] * 5
+        for i, letter in enumerate(self.axes):
+            if letter in values:
+                value = values[letter] * (scale if i < 3 else 1.0)
+                if not abs(value) <= MAX_COORDINATE:
+                    self.fail(f"coordinate {spelled[letter]!r} is out of range", spelled[letter])
+                machine[i] = value
+        self.go_machine(machine, rapid, spelled)
+
+    def go_machine(self, machine, rapid, spelled):
+        """A move to machine axes (mm, deg; NaN: the axis stays), programmed in either mode;
+        in TCP mode it runs in joint space and the tip follows from the kinematics."""
+        if not self.tcp:
+            self.go([m if math.isfinite(m) else p for m, p in zip(machine, self.prog)],
+                    rapid, spelled)
+            return
+        current = self.machine_position()
+        target = [m if math.isfinite(m) else c for m, c in zip(machine, current)]
+        if not all(math.isfinite(v) for v in target):
+            # before the start: the tip is not known until the other axes are, as at a TCP
+            # switch with unknown axes
+            self.deferred.append((list(self.prog), True))
+            self.deferred.append((list(target), False))
+            self.prog = [math.nan] * 3 + target[3:]
+            if rapid:
+                return
+            self.resolve()
+            self.begin(self.row)
+            current = self.machine_position()
+            target = [m if math.isfinite(m) else c for m, c in zip(machine, current)]
+        elif self.start is None:
+            if rapid or not all(math.isfinite(v) for v in current):
+                self.prog = self.convert(target, False, True)
+                self.deferred = []
+                self.begin(self.row)
+                return
+            self.begin(self.row)
+        duration, feed = math.nan, math.nan
+        if not rapid:
+            duration, feed = self.timing(current, target, 1, spelled)
+        self.add(target, rapid, duration, feed, tcp=False)
+        self.prog = self.convert(target, False, True)
+
     # ------------------------------------------------------------------ motion
-    def move(self, values, spelled, scale, g_codes):
-        if self.motion is None:
-            self.fail("axis words before any motion code (G0, G1, G2, G3)",
-                      next(spelled[a] for a in self.axes if a in spelled))
+    def target(self, values, spelled, scale):
+        """The end point of the block's axis words (absolute coordinates, mm and deg): G90
+        words are in the work coordinates (work offset and G92 offset added), G91 words add
+        to the position; an axis without a word stays."""
         target = list(self.prog)
         for i, letter in enumerate(self.axes):
             if letter in values:
                 value = values[letter] * (scale if i < 3 else 1.0)
                 if self.incremental:
                     if not math.isfinite(target[i]):
+                        if value == 0.0:
+                            continue  # no motion on an axis not known yet (G91 G28 Z0)
                         self.fail(f"incremental (G91) move of axis {letter} before its "
                                   "position is known", spelled[letter])
                     value += target[i]
+                else:
+                    value += self.g5x[i] + self.g92[i]
                 if not abs(value) <= MAX_COORDINATE:
                     self.fail(f"coordinate {spelled[letter]!r} is out of range", spelled[letter])
                 target[i] = value
-        rapid = self.motion == 0
+        return target
+
+    def move(self, values, spelled, scale, g_codes):
+        if self.motion is None:
+            self.fail("axis words before any motion code (G0, G1, G2, G3)",
+                      next(spelled[a] for a in self.axes if a in spelled))
+        target = self.target(values, spelled, scale)
+        arc = self.motion in (2, 3)
         if self.start is None:
-            if all(math.isfinite(v) for v in target):
-                # the block that completes the axes ends where the machine starts from
-                if self.motion in (2, 3):
-                    self.fail("the first block that sets all axes is an arc: its start "
-                              "point is unknown; position with G0 first",
-                              g_codes[0][1] if g_codes else None)
-                self.prog = target
-                self.begin(self.row)
+            target = self.first_move(target, self.motion == 0, arc, g_codes)
+            if target is None:
                 return
-            if rapid:
-                self.prog = target
-                return
-            # a feed move before all axes are known: the unknown ones are 0
-            missing = [self.axes[i] for i in range(5) if not math.isfinite(self.prog[i])]
-            self.notices.append(f"{self.source}, line {self.row}: axes {' '.join(missing)} "
-                                "were not programmed before the first feed move; taken as 0")
-            self.prog = [0.0 if not math.isfinite(v) else v for v in self.prog]
-            target = [0.0 if not math.isfinite(v) else v for v in target]
-            self.begin(self.row)
-        if self.motion in (2, 3):
+        if arc:
             self.arc(target, values, spelled, scale)
-            return
+        else:
+            self.go(target, self.motion == 0, spelled)
+
+    def first_move(self, target, rapid, arc=False, g_codes=()):
+        """Before the start: None where the move only positions (a rapid, or the block that
+        completes the axes: the machine starts from its end), else the target of the first
+        feed move with the axes not known yet taken as 0."""
+        if all(math.isfinite(v) for v in target):
+            if arc:
+                self.fail("the first block that sets all axes is an arc: its start point is "
+                          "unknown; position with G0 first", g_codes[0][1] if g_codes else None)
+            self.prog = list(target)
+            self.deferred = []
+            self.begin(self.row)
+            return None
+        if rapid:
+            self.prog = list(target)
+            return None
+        target = self.resolve(target)
+        self.begin(self.row)
+        return target
+
+    def go(self, target, rapid, spelled):
+        """A straight move to ``target`` (absolute coordinates in the current mode)."""
+        if self.start is None:
+            target = self.first_move(target, rapid)
+            if target is None:
+                return
         duration, feed = math.nan, math.nan
         if not rapid:
             duration, feed = self.timing(self.prog, target, 1, spelled)
@@ -582,13 +860,13 @@ class _Reader:
             length = math.dist(start[3:], end[3:])  # rotary only: F in degrees per minute
         return 60.0 * length / self.feed / n_pieces, self.feed / 60.0
 
-    def add(self, target, rapid, duration, feed):
+    def add(self, target, rapid, duration, feed, tcp=None):
         self.ends.append(target)
         self.rapid.append(rapid)
         self.duration.append(duration)
         self.feeds.append(feed)
         self.lines.append(self.row)
-        self.tcp_moves.append(self.tcp)
+        self.tcp_moves.append(self.tcp if tcp is None else tcp)
         self.tolerances.append(self.path_tolerance)
         self.prog = list(target)
         self.n_moves += 1
@@ -738,6 +1016,11 @@ def _tilt_travel(kinematics) -> tuple[float, float]:
     low, high = getattr(kinematics, "tilt_limits", (None, None))
     return (-math.pi if low is None else max(low, -math.pi),
             math.pi if high is None else min(high, math.pi))
+
+
+def _degrees(position) -> tuple[float, ...]:
+    """A machine-file position (mm, rad) in the reader's units (mm, deg)."""
+    return (*map(float, position[:3]), *map(math.degrees, position[3:]))
 
 
 def _ffill(values: np.ndarray, initial: float) -> np.ndarray:

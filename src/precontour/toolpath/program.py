@@ -54,7 +54,8 @@ class Program:
     ----------
     start : ndarray, shape (5,)
         Machine axes q = [X, Y, Z, A, C] (mm, rad) at the start: the first block after which
-        all five axes are known (axes never programmed before the first feed move are 0).
+        all five axes are known (axes never programmed before the first feed move are 0, in
+        the frame they were unknown in).
     start_line : int
         Source line of that block.
     q : ndarray, shape (M, 5)
@@ -77,7 +78,8 @@ class Program:
     passthrough : tuple of (int, str)
         (source line, text) of the non-motion content an output program keeps: comments,
         tool change, spindle, coolant, other M codes and mode words (G17-G19, G40, G43, G49,
-        G54-G59, G61, G64, G80). A line that also moves keeps only those words.
+        G61, G64, G80). A line that also moves keeps only those words. Work offsets
+        (G54-G59.3) are applied to ``q``, not kept.
     source : str
         File name.
     tcp : bool
