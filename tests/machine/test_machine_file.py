@@ -74,6 +74,14 @@ def _edit(text, old, new):
      r"\[gcode.work_offsets\] G59: a dotted key: write names with a dot in quotes"),
     ("servo_period = 0.001", "servo_period = 0.001\n[gcode.work_offsets]\n\"G54.1 P1\" = [0, 0, "
      "0, 0, 0]\n\"G54.1P1\" = [0, 0, 0, 0, 0]", r"G54.1P1: G54.1 P1 is given twice"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M6\"]",
+     r"\[gcode\] tcp_on: M6 has a meaning of its own"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = \"M128\"",
+     r"\[gcode\] tcp_on: must be a list of M codes such as \[\"M428\"\]"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"G43.4\"]",
+     r"\[gcode\] tcp_on: 'G43.4' is not an M code"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M128\"]\n"
+     "tcp_off = [\"M128\"]", r"\[gcode\] tcp_off: M128 is in tcp_on too"),
 ])
 def test_machine_file_errors(tmp_path, old, new, pattern):
     path = tmp_path / "bad.toml"
@@ -92,7 +100,10 @@ def test_gcode_settings(tmp_path):
     settings = parse_machine(text).gcode
     assert settings.g28 is None and settings.g30 == (1, 2, 3, 0.5, -1)
     assert dict(settings.work_offsets) == {"G59.1": (0, 0, 9, 0, 0), "G54.1 P12": (1, 0, 0, 0, 0)}
+    assert settings.tcp_on == (428,) and settings.tcp_off == (429,)   # LinuxCNC's remaps
     assert load_machine("zhang2013").gcode.work_offsets == {}
+    none = parse_machine(builtin_machine_text() + "[gcode]\ntcp_on = []\ntcp_off = []\n")
+    assert none.gcode.tcp_on == () and none.gcode.tcp_off == ()
 
 
 def test_unknown_machine_and_controller(machine):

@@ -154,13 +154,13 @@ def test_dwell_stops_and_block_delete(machine, tmp_path):
 
 
 def test_unknown_m_codes_are_kept_with_one_notice(machine, tmp_path):
-    text = "M428 ;TCP on\nG0 X0 Y0 Z0 A0 C0\nM428\nM7 M8\nG1 X1 F60 M9\nM429\n"
+    text = "M100 ;probe on\nG0 X0 Y0 Z0 A0 C0\nM100\nM7 M8\nG1 X1 F60 M9\nM101\n"
     program = read(tmp_path, machine, text)
     assert len(program.notices) == 2
-    assert program.notices[0].endswith("prog.ngc, line 1: M428 is not a code precontour "
+    assert program.notices[0].endswith("prog.ngc, line 1: M100 is not a code precontour "
                                        "knows; kept as a pass-through line")
-    assert dict(program.passthrough) == {1: "M428 ;TCP on", 3: "M428", 4: "M7 M8", 5: "M9",
-                                         6: "M429"}
+    assert dict(program.passthrough) == {1: "M100 ;probe on", 3: "M100", 4: "M7 M8", 5: "M9",
+                                         6: "M101"}
 
 
 def test_g93_and_g94_switching(machine, tmp_path):
@@ -289,7 +289,8 @@ def _tcp_program(prefix, suffix):
 
 
 @pytest.mark.parametrize("prefix, suffix, option", [
-    ("G43.4 H1", "G49", False), ("TRAORI", "TRAFOOF", False), ("M428", "M429", True)])
+    ("G43.4 H1", "G49", False), ("TRAORI", "TRAFOOF", False), ("M428", "M429", False),
+    ("(TCP by the site's own code)", "G49", True)])
 def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, option):
     text, tips, rot = _tcp_program(prefix, suffix)
     program = read(tmp_path, machine, text, tcp=option)
@@ -298,8 +299,9 @@ def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, 
     np.testing.assert_allclose(program.points[:4, 3:], rot, rtol=0, atol=1e-15)  # as programmed
     np.testing.assert_allclose(program.duration[:3], [6.0, 3.0, 2.0])
     assert program.tcp and program.tcp_move[:3].all()
-    assert all("H1" not in text for _, text in program.passthrough)  # no lone H word
-    if option:  # the whole program is TCP: the last rapid is a tip position too
+    # no lone H word, no TCP switch in the pass-through lines
+    assert all("H1" not in text and "M42" not in text for _, text in program.passthrough)
+    if option:  # TCP from the start, and G49 does not end it: the last rapid is a tip too
         np.testing.assert_allclose(machine.kinematics.forward(program.q[-1])[0], [0, 0, 100],
                                    atol=1e-10)
     else:       # after G49/TRAFOOF the words are machine axes again
@@ -615,3 +617,102 @@ def test_m61_and_io_words_are_kept(machine, tmp_path):
     assert dict(program.passthrough) == {2: "M61 Q1", 3: "M64 P2", 4: "M66 E0 L0",
                                          5: "M68 E3 Q1.5"}
     assert program.notices == ()
+
+
+# --------------------------------------------------------------------------- TCP switches
+
+
+@pytest.fixture(scope="module")
+def xyzac():
+    return load_machine("linuxcnc-xyzac-trt")
+
+
+SWITCHKINS_DEMOS = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/"
+                        "5axis/table-rotary-tilting/demos")
+
+# LinuxCNC's xyzac_switchkins_test_3.ngc, re-typed: M429 identity kinematics, M428 TCP; its
+# "expect" comments give the position LinuxCNC's display shows (machine axes under M429, the
+# tool tip in the table frame under M428) after each block
+SWITCHKINS_3 = """m429 ;trivkins
+G0 X0 Y0 Z0 A0 C0
+G0 C90 X10 Y0
+G1 F1000 Z2
+(debug,A expect: 10   0 2) m1
+m428 ;tcp
+(debug,C expect:  0 -10 2) m1
+g1f1000 z0
+(debug,D expect:  0 -10 0) m1
+m429 ;trivkins
+(debug,F expect: 10 0 0)
+G1 X5
+m2
+"""
+
+
+def _expectations(program, machine):
+    """(line, displayed position) after each move: machine axes, or the tip in TCP mode."""
+    tips, _ = machine.kinematics.forward(program.q)
+    shown = np.where(program.tcp_move[:, None], tips, program.q[:, :3])
+    return dict(zip(program.line.tolist(), shown))
+
+
+def test_tcp_switched_mid_program_by_m428_m429(xyzac, tmp_path):
+    program = read(tmp_path, xyzac, SWITCHKINS_3)
+    shown = _expectations(program, xyzac)
+    np.testing.assert_allclose(shown[4], [10, 0, 2], atol=1e-12)    # expect A (identity)
+    np.testing.assert_allclose(shown[8], [0, -10, 0], atol=1e-12)   # expect C, then D (TCP)
+    np.testing.assert_allclose(program.q[-2, :3], [10, 0, 0], atol=1e-12)   # expect F
+    np.testing.assert_allclose(program.q[-1, :3], [5, 0, 0], atol=1e-12)    # machine axes again
+    np.testing.assert_array_equal(program.tcp_move, [False, False, True, False])
+    assert program.tcp and program.notices == ()
+    assert dict(program.passthrough)[6] == "(tcp)"
+    installed = SWITCHKINS_DEMOS / "xyzac_switchkins_test_3.ngc"
+    if installed.exists():
+        demo = read_program(installed, xyzac)
+        tips, _ = xyzac.kinematics.forward(demo.q)
+        np.testing.assert_allclose(tips[-1], [0, -10, 0], atol=1e-12)
+        np.testing.assert_allclose(demo.q[-1, :3], [10, 0, 0], atol=1e-12)
+
+
+def test_tcp_rotary_only_move_after_a_switch_holds_the_tip(xyzac, tmp_path):
+    # xyzac_switchkins_test_2.ngc's pattern: after M428 a rotary-only G1 keeps the tip
+    text = "M429\nG0 X0 Y0 Z5 A0 C0\nG1 F1000 Z0\nG1 X20 Y0\nM428\nG1 C90\nG1 X20\nG1 Y20\n"
+    program = read(tmp_path, xyzac, text)
+    tips, _ = xyzac.kinematics.forward(program.q)
+    np.testing.assert_allclose(tips[2:], [[20, 0, 0], [20, 0, 0], [20, 20, 0]], atol=1e-12)
+    np.testing.assert_allclose(np.degrees(program.q[2:, 4]), 90)
+
+
+def test_g49_does_not_end_tcp_switched_by_an_m_code(tmp_path):
+    # boat-xyzbc.ngc's ending: G43 H1 is the tool length, G49 cancels it, not the TCP of M428
+    machine = load_machine("linuxcnc-xyzbc-trt")
+    text = ("M428\nG0 X10 Y-5 Z5 B-20 C30\nG43 H1 Z4\nG53 G49 Z30 M09\nG53 Y0 B0 C0\n"
+            "G0 X1\nM429\nG0 X2\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.tcp_move, [True, False, False, True, False])
+    first = machine.kinematics.linear_axes(np.array([10.0, -5.0, 4.0]), deg(-20), deg(30))
+    np.testing.assert_allclose(program.q[1], [*first[:2], 30, deg(-20), deg(30)], atol=1e-9)
+    np.testing.assert_allclose(program.q[2], [first[0], 0, 30, 0, 0], atol=1e-9)
+    tip, _ = machine.kinematics.forward(program.q[3])
+    np.testing.assert_allclose(tip[0], 1.0, atol=1e-12)
+    np.testing.assert_allclose(program.q[4, 0], 2.0, atol=1e-12)
+
+
+def test_the_sites_own_tcp_codes_from_the_machine_file(tmp_path):
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    machine = parse_machine(builtin_machine_text() + '[gcode]\ntcp_on = ["M128"]\n'
+                            'tcp_off = ["m129"]\n', "heidenhain.toml")
+    text = "G0 X0 Y0 Z400 A0 C0\nM128\nG1 X1 F60\nM129\nG1 X2\nM428\n"
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.tcp_move, [True, False])
+    tip, _ = machine.kinematics.forward(program.q[0])
+    start_tip, _ = machine.kinematics.forward(program.start)
+    np.testing.assert_allclose(tip, start_tip + [1, 0, 0], atol=1e-9)
+    assert program.notices == (f"{tmp_path / 'prog.ngc'}, line 6: M428 is not a code "
+                               "precontour knows; kept as a pass-through line",)
+
+
+def test_tcp_option_ends_at_the_programs_own_tcp_off(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X1 Y2 Z3 A0 C0\nG1 X2 F60\nM429\nG1 X3\n", tcp=True)
+    np.testing.assert_array_equal(program.tcp_move, [True, False])
+    np.testing.assert_allclose(program.q[-1, 0], 3.0)

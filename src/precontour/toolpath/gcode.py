@@ -13,9 +13,13 @@ What is read, block by block with the usual modal state:
 - G90/G91, G90.1/G91.1 (arc centres absolute / incremental), G20/G21, modal motion and
   coordinates, ``N`` numbers, ``( )`` and ``;`` comments, ``/`` block delete, ``%``, ``O``
   program numbers;
-- tool centre point (TCP) mode, G43.4/G43.5 ... G49 or TRAORI ... TRAFOOF, or the whole
-  program with ``tcp=True``: X Y Z are then the tool tip in the workpiece frame, the rotary
-  axes are taken as programmed and the linear axes follow from the machine's kinematics;
+- tool centre point (TCP) mode, switched per block: G43.4/G43.5 ... G49, TRAORI ... TRAFOOF,
+  the site's own M codes (the machine file's ``[gcode] tcp_on``/``tcp_off``, by default
+  LinuxCNC's remapped M428 ... M429; the off code ends every TCP mode, G49 only G43.4's), or
+  from the start with ``tcp=True``: X Y Z are then the tool tip in the workpiece frame, the
+  rotary axes are taken as programmed and the linear axes follow from the machine's
+  kinematics; at a switch the position is carried over through the kinematics (LinuxCNC
+  re-reads it from the machine), so modal axes keep the physical point;
 - stops: G4 dwell (P or X seconds), M0, M1, M6 (tool change), M2/M30 (end; later lines are
   not read);
 - coordinates as LinuxCNC keeps them: the absolute position is the words plus the work offset
@@ -29,9 +33,8 @@ What is read, block by block with the usual modal state:
   length);
 - kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
   M61 Q, M62-M68 with their P E L Q words, G17-G19, G40, G43, G49, G61, G64, G80; any other M
-  code is kept too, with a one-line notice (LinuxCNC programs switch TCP with remapped
-  M428/M429). G64 P (path tolerance) and G61/G61.1 (exact path: 0) are also kept per move for
-  the timing.
+  code is kept too, with a one-line notice. G64 P (path tolerance) and G61/G61.1 (exact path:
+  0) are also kept per move for the timing.
 
 Everything else -- subroutines and control flow (O-word sub/call/if/while, M98/M99, G65),
 macros and variables (``#``, ``[ ]``), G10 L1/L10/L11 (tool tables), cutter compensation,
@@ -136,8 +139,9 @@ def read_program(path: str | Path, machine, *, tcp: bool = False,
         The machine (or a built-in name / machine file): its kinematics'
         ``forward(q) -> (P, O)`` converts TCP tool tips to machine axes.
     tcp : bool
-        The whole program is in TCP mode (for controllers that switch it with their own M
-        code, e.g. LinuxCNC's M428).
+        The program starts in TCP mode (for controllers that switch it with M codes the
+        machine file does not name); G49 and TRAFOOF do not end it, the machine file's TCP-off
+        M code (by default LinuxCNC's M429) does.
     block_delete : bool
         Skip blocks starting with ``/``.
     arc_tolerance : float
@@ -178,6 +182,11 @@ class _Reader:
         self.block_delete, self.arc_tolerance = block_delete, arc_tolerance
         self.tcp_all = tcp
         self.tcp = tcp
+        # what holds TCP mode on: "option" (tcp=True), "G43.4" (G43.4/G43.5, ended by G49),
+        # "TRAORI" (ended by TRAFOOF), "M" (the site's TCP-on M code; its TCP-off code ends
+        # every one: the controller switches its kinematics)
+        self.tcp_sources = {"option"} if tcp else set()
+        self.tcp_on, self.tcp_off = frozenset(settings.tcp_on), frozenset(settings.tcp_off)
         self.motion = None
         self.plane = _PLANES[170]
         self.inch = False
@@ -416,7 +425,12 @@ class _Reader:
             m_numbers.add(number)
             if number in _SUBROUTINE_M:
                 self.fail(_SUBROUTINE_M[number], word)
-            if number not in _KNOWN_M and number not in self.unknown_m:
+            if number in self.tcp_on or number in self.tcp_off:
+                switches = [w for c, w in m_codes if c // 10 in self.tcp_on | self.tcp_off]
+                if len(switches) > 1:
+                    self.fail(f"two TCP switches ({', '.join(switches)}) in one block",
+                              switches[1])
+            elif number not in _KNOWN_M and number not in self.unknown_m:
                 self.unknown_m.add(number)
                 self.notices.append(f"{self.source}, line {self.row}: M{number} is not a code "
                                     "precontour knows; kept as a pass-through line")
@@ -452,6 +466,8 @@ class _Reader:
                     self.skipped[_g_name(code)] += 1
                     if code == 541 and "P" in spelled:
                         kept.append(spelled["P"])
+            elif letter == "M" and int(round(float(number))) in self.tcp_on | self.tcp_off:
+                continue  # a TCP switch: interpreted, not kept (as G43.4)
             elif letter == "M" or letter in _PASSTHROUGH_WORDS or letter in m_words:
                 if letter != "M":
                     self.skipped[letter] += 1
@@ -479,10 +495,22 @@ class _Reader:
         for code in (170, 180, 190):
             if code in codes:
                 self.plane = _PLANES[code]
-        if 434 in codes or 435 in codes or traori:
-            self.set_tcp(True)
-        if (490 in codes or trafoof) and not self.tcp_all:
-            self.set_tcp(False)
+        # the site's M codes (LinuxCNC's remapped M428/M429, modal group 10) act before the
+        # tool length codes G43.4/G43.5/G49 in RS274/NGC's order of execution
+        m_switch = m_numbers & (self.tcp_on | self.tcp_off)
+        if m_switch & self.tcp_on:
+            self.tcp_sources.add("M")
+        if m_switch & self.tcp_off:
+            self.tcp_sources.clear()
+        if 434 in codes or 435 in codes:
+            self.tcp_sources.add("G43.4")
+        if 490 in codes:
+            self.tcp_sources.discard("G43.4")
+        if traori:
+            self.tcp_sources.add("TRAORI")
+        if trafoof:
+            self.tcp_sources.discard("TRAORI")
+        self.set_tcp(bool(self.tcp_sources))
         for code in _WORK_OFFSET_G:
             if code in codes:
                 self.select_work_offset(code, values, spelled)
@@ -557,7 +585,7 @@ class _Reader:
                 end = end or kind == "end"
         if kept or comments:
             motion_words = moves_axes or dwell or "F" in spelled or any(
-                code not in PASSTHROUGH_G for code in codes) or traori or trafoof
+                code not in PASSTHROUGH_G for code in codes) or traori or trafoof or m_switch
             if motion_words:
                 text = " ".join(kept + [f"({c.strip()})" for c in comments if c.strip()])
             else:
