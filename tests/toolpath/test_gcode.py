@@ -358,13 +358,46 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0\nG1 X Y1 F100\n", r"line 2, word 'X': cannot parse number 'X'"),
     ("G0 X0\r\nG1 Y- F100\r\n", r"line 2, word 'Y-': cannot parse number 'Y-'"),
     ("G0 X0\n5 Y1\n", r"line 2: cannot parse '5'"),
-    ("G0 X0\nG1 X#1 F100\n", r"line 2, word '#1': macros and variables"),
-    ("G0 X0\n#1=5\n", r"line 2, word '#1=5': macros and variables \(#, \[ \], =\)"),
-    ("G0 X[1+2]\n", r"line 1, word '\[1\+2\]': macros and variables"),
-    ("G0 X0\nO100 SUB\n", r"line 2, word 'O100SUB': subroutines and control flow \(O-word "
-                          r"sub\)"),
-    ("G0 X0\nO100 CALL\n", r"line 2, word 'O100CALL': subroutines .*\(O-word call\)"),
-    ("G0 X0\nM98 P100\n", r"line 2, word 'M98': subprogram calls \(M98\)"),
+    ("G0 X0\nG1 X#<a> F100\n", r"line 2, word '#<A>': named parameter #<a> is not defined"),
+    ("G0 X0\nG1 X#<_nope> F100\n", r"line 2, word '#<_NOPE>': named parameter #<_nope> is "
+                                  r"not defined"),
+    ("G0 X0\n#1 = [1 / [2 - 2]]\n", r"line 2, word '#1=\[1/\[2-2\]\]': division by zero"),
+    ("G0 X0\nG0 X[SQRT[-1]]\n", r"line 2, word 'X\[SQRT\[-1\]\]': SQRT\[-1\] is not defined"),
+    ("G0 X0\nG0 X[FOO[1]]\n", r"line 2, word 'X\[FOO\[1\]\]': unknown function or operator "
+                              r"'FOO'"),
+    ("G0 X[1+2\n", r"line 1, word 'X\[1\+2': unclosed '\[' in an expression"),
+    ("G0 X0\n#6000 = 1\n", r"line 2, word '#6000': parameter #6000 is out of range"),
+    ("G0 X0\n#5221 = 1\n", r"line 2, word '#5221=1': parameter #5221 is the controller's "
+                           r"stored position or offset data"),
+    ("G0 X0\n#<_x> = 1\n", r"line 2, word '#<_X>=1': #<_x> is read-only"),
+    ("G0 X0\n#1\n", r"line 2, word '#1': a parameter outside an expression must be set"),
+    ("G0 X0\nX=1\n", r"line 2, word 'X=1': '=' sets a parameter only after one"),
+    ("G0 X0\nO100 SUB\n", r"line 2, word 'O100SUB': o100 sub is never closed"),
+    ("G0 X0\nO100 CALL\n", r"line 2, word 'O100CALL': subroutine o100 is not defined in this "
+                           r"file"),
+    ("G0 X0\nO<probe> CALL [1]\n", r"line 2, word 'O<PROBE>CALL': subroutine o<probe> is not "
+                                   r"defined in this file \(LinuxCNC looks for probe.ngc in its "
+                                   r"SUBROUTINE_PATH; precontour reads one file\)"),
+    ("G0 X0\no101 endwhile\n", r"line 2, word 'O101ENDWHILE': o101 endwhile without an open "
+                               r"o101 while"),
+    ("G0 X0\no1 if [1]\no2 endif\n", r"line 3, word 'O2ENDIF': o2 endif without an open o2 "
+                                     r"if"),
+    ("G0 X0\no1 break\n", r"line 2, word 'O1BREAK': o1 break outside an o1 while or do loop"),
+    ("G0 X0\no1 return\n", r"line 2, word 'O1RETURN': o1 return outside a subroutine"),
+    ("G0 X0\no1 if [1] G1\no1 endif\n", r"line 2, word 'O1IF': after O1 if only values in"),
+    ("G0 X0\no1 sub\no1 call\no1 endsub\no1 call\n",
+     r"line 3: calls nested more than 100 deep: a runaway recursion\?"),
+    ("G0 X0\nM98 P100\n", r"line 2, word 'P100': M98: there is no O100 \(its subprogram\) in "
+                          r"this file"),
+    ("G0 X0\nM99\n", r"line 2, word 'M99': M99 outside a subprogram: in the main program it "
+                     r"would restart it"),
+    ("G0 X0\nM98 P100\nM30\nO100\nG0 X1\n", r"line 5: the program ends inside subprogram O100 "
+                                          r"\(called on line 2\): M99 is missing"),
+    ("G0 X0\nM72\n", r"line 2, word 'M72': M72 without a state saved by M70"),
+    ("G0 X0\nIF [#1 GT 0] GOTO 10\n", r"line 2, word 'IF\[': Fanuc macro statements \(IF GOTO, "
+                                     r"WHILE DO END\) are not supported"),
+    ("G0 X0\no1 repeat [2]\no1 break\no1 endrepeat\n", r"line 3, word 'O1BREAK': o1 break "
+                                                    r"outside an o1 while or do loop"),
     ("G0 X0\nG65 P9000\n", r"line 2, word 'G65': macro calls \(G65\)"),
     ("X0 Y0 Z10\n", r"line 1, word 'X0': axis words before any motion code"),
     ("G0 G1 X0\n", r"line 1, word 'G1': two codes of one modal group \(G0, G1\) in one block"),
@@ -375,7 +408,7 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0\nG1 X1 F100\nG1 Q5 X2\n", r"line 3, word 'Q5': unsupported word 'Q5' \(Q is read "
                                       r"with G64, M61, M66-M68\)"),
     ("G0 X0\nG1 X1 F100 \u00e9\n", r"line 2: cannot parse '\u00c9'"),
-    ("G0 X0\nG4 G1 X1 P1\n", r"line 2, word 'G4': dwell \(G4\) and a motion code"),
+    ("G0 X0\nG4 G1 X1\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
     ("G0 X0\nG4\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
     ("G0 X0\nG4 P1 Y2\n", r"line 2, word 'Y2': axis word 'Y2' in a dwell"),
     ("G0 X0\nG1 X1 (OPEN (NESTED) COMMENT)\n", r"line 2: unbalanced or nested"),
@@ -716,3 +749,84 @@ def test_tcp_option_ends_at_the_programs_own_tcp_off(machine, tmp_path):
     program = read(tmp_path, machine, "G0 X1 Y2 Z3 A0 C0\nG1 X2 F60\nM429\nG1 X3\n", tcp=True)
     np.testing.assert_array_equal(program.tcp_move, [True, False])
     np.testing.assert_allclose(program.q[-1, 0], 3.0)
+
+
+# --------------------------------------------------------------------------- the language
+
+
+def _ends_by_line(program):
+    pm = program.programmed
+    return [(int(line), [round(float(v), 9) + 0.0 for v in end[:3]])
+            for line, end in zip(pm.line, pm.end)]
+
+
+def test_language_program_gives_linuxcncs_numbers(xyzac):
+    # the values in the program's comments are what LinuxCNC 2.9's rs274 prints for it
+    program = read_program(DATA / "language.ngc", xyzac)
+    ends = _ends_by_line(program)
+    expected_start = [(9, [7, 0, 10]), (10, [4, 4, 10]), (11, [1, 2, 10]),
+                      (12, [-3, -3, -2]), (13, [1, 0, 0]), (14, [3, 1, 5]),
+                      (15, [6, 3, 1.5]), (16, [0, 1, 1]), (18, [0, 0, 10]),
+                      (19, [-5, -1, -2]),
+                      (23, [1, 2, 0]), (31, [3, 1, 5]), (23, [20, 1, -1]), (33, [21, 2, 0]),
+                      (43, [12, 0, 0])]
+    assert ends[:len(expected_start)] == expected_start
+    rest = ends[len(expected_start):]
+    # do-while three times, while with continue (#5 = 2) and break (#5 = 5), repeat x3,
+    # while [1] left by a break
+    assert [e for _, e in rest[:10]] == [[12, 0, -1], [12, 0, -2], [12, 0, -3], [1, 2, -3],
+                                         [3, 6, -3], [4, 8, -3], [5, 7, -3], [6, 6, -3],
+                                         [7, 5, -3], [9, 5, -3]]
+    # M98 P1000 L2, each calling P2000: lines of the subprograms, #7 shared
+    assert rest[10:15] == [(97, [9, 5, -4]), (94, [10, 5, -4]), (97, [10, 5, -5]),
+                           (94, [20, 5, -5]), (74, [2, 0, 0])]
+    arcs = program.programmed.kind == 2
+    np.testing.assert_allclose(program.programmed.centre[arcs][:, :2], [[0, 0], [0, 5]],
+                               atol=1e-12)
+    np.testing.assert_array_equal(program.programmed.turns[arcs], [1, -1])
+    # polar @10 ^45, then G91 @1 ^15, then G90 @5; M72 restores G21 G90 after G20 G91
+    assert [e for _, e in rest[-6:-1]] == [
+        [round(10 * math.cos(math.pi / 4), 9), round(10 * math.sin(math.pi / 4), 9), 0],
+        [round(11 * math.cos(math.radians(60)), 9), round(11 * math.sin(math.radians(60)), 9),
+         0],
+        [2.5, round(5 * math.sin(math.radians(60)), 9), 0],
+        [5.04, round(5 * math.sin(math.radians(60)), 9), 0],
+        [1, round(5 * math.sin(math.radians(60)), 9), 0]]
+    assert program.notices == ()
+
+
+def test_line_column_is_the_line_executing(machine, tmp_path):
+    text = ("G0 X0 Y0 Z0 A0 C0\no10 sub\n  G1 X#1 F60\n  G1 Y#1\no10 endsub\no10 call [1]\n"
+            "o10 call [2]\nG1 Z1\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.line, [3, 4, 3, 4, 8])
+    np.testing.assert_allclose(program.q[:, :3], [[1, 0, 0], [1, 1, 0], [2, 1, 0], [2, 2, 0],
+                                                  [2, 2, 1]])
+
+
+def test_parameters_in_passthrough_lines_are_evaluated(machine, tmp_path):
+    text = "#1 = 1200\nG0 X0 Y0 Z0 A0 C0\nS#1 M3 (spindle)\nT[#1 / 600] M6\nG1 X1 F60\n"
+    program = read(tmp_path, machine, text)
+    kept = dict(program.passthrough)
+    assert kept[3] == "S1200 M3 (spindle)" and kept[4] == "T2 M6"
+
+
+def test_a_runaway_loop_ends_with_an_error(machine, tmp_path, monkeypatch):
+    import precontour.toolpath.gcode as gcode
+    monkeypatch.setattr(gcode, "MAX_LOOP_ITERATIONS", 1000)
+    text = "G0 X0 Y0 Z0 A0 C0\n#1 = 0\no7 while [#1 GE 0]\n  #1 = [#1 + 1]\no7 endwhile\n"
+    with pytest.raises(ProgramError, match=r"prog.ngc, line 3, word 'O7WHILE': o7 while ran "
+                                           r"1000 times: a runaway loop\?"):
+        read(tmp_path, machine, text)
+    text = "G0 X0 Y0 Z0 A0 C0\no8 do\n  G91 G1 X0.001 F60\no8 while [1]\n"
+    with pytest.raises(ProgramError, match=r"line 2, word 'O8DO': o8 do ran 1000 times"):
+        read(tmp_path, machine, text)
+    assert gcode.MAX_LOOP_ITERATIONS == 1000
+
+
+def test_fanuc_subprogram_repeat_forms(machine, tmp_path):
+    text = ("G0 X0 Y0 Z0 A0 C0\nG91\nM98 P20100\nM98 P100 L0\nM98 P100 L2\nG90\nM30\n"
+            "O100\nG1 X1 F60\nM99\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_allclose(program.q[:, 0], [1, 2, 3, 4])   # 2 + 0 + 2 calls
+    np.testing.assert_array_equal(program.line, [9, 9, 9, 9])

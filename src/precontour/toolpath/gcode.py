@@ -31,14 +31,27 @@ What is read, block by block with the usual modal state:
   without axis words), in machine coordinates; G28.1/G30.1 store the current position;
   tool length offsets (G43 H) are not applied (the machine file's kinematics carries the tool
   length);
+- LinuxCNC's language (:mod:`._ngc`): numbered and named parameters (``#1``, ``#<depth>``,
+  global ``#<_name>``, LinuxCNC's predefined ``#<_x>`` ... and stored ``#5161`` ...),
+  expressions with its operators, precedence and functions, polar coordinates (``@`` radius,
+  ``^`` angle), O-word subroutines (``sub``/``endsub``/``call`` with arguments ``#1``-``#30``,
+  ``return`` with a value in ``#<_value>``), ``if``/``elseif``/``else``/``endif``,
+  ``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``, ``break``/``continue``,
+  Fanuc subprograms in the same file (``M98 P<n> [L<count>]`` to ``O<n>`` ... ``M99``) and
+  the modal state of M70-M73; no loop runs more than :data:`MAX_LOOP_ITERATIONS` times and
+  no calls nest deeper than :data:`MAX_CALL_DEPTH` (a runaway ends with an error on its
+  line); the ``line`` of a move is the line executing (inside a subroutine, its own);
 - kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
-  M61 Q, M62-M68 with their P E L Q words, G17-G19, G40, G43, G49, G61, G64, G80; any other M
-  code is kept too, with a one-line notice. G64 P (path tolerance) and G61/G61.1 (exact path:
-  0) are also kept per move for the timing.
+  M61 Q, M62-M68 with their P E L Q words, G17-G19, G40, G43, G43.1/G43.2 (their axis words
+  are the tool length, not applied), G49, G61, G64, G80; any other M code is kept too, with a
+  one-line notice; a line with parameters keeps its values. G64 P (path tolerance) and
+  G61/G61.1 (exact path: 0) are also kept per move for the timing.
+- :attr:`Program.programmed`: the moves as programmed (straight moves and whole arcs with
+  their centres, feeds as given), as LinuxCNC's canonical interface receives them.
 
-Everything else -- subroutines and control flow (O-word sub/call/if/while, M98/M99, G65),
-macros and variables (``#``, ``[ ]``), G10 L1/L10/L11 (tool tables), cutter compensation,
-canned cycles, G95 -- is one :class:`~precontour.errors.ProgramError` naming the file, line
+Everything else -- subroutines in other files, Fanuc macros (G65, IF/GOTO/WHILE-DO),
+G10 L1/L10/L11 (tool tables), cutter compensation, canned cycles, G95, HAL pins
+(``#<_hal[...]>``) -- is one :class:`~precontour.errors.ProgramError` naming the file, line
 and word.
 """
 
@@ -56,7 +69,9 @@ import pyarrow as pa
 from ..errors import InputError, ProgramError
 from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
 from ._common import INCH, ReadReport, finish, read_text
-from .program import Program, Stop
+from ._ngc import (MAX_PARAMETER, NgcError, OWord, StructureError, compile_line, format_number,
+                   needs_macro_reader, scan_structure)
+from .program import Program, ProgrammedMoves, Stop
 
 #: Largest distance (mm) between an arc and its chords.
 ARC_CHORD_TOLERANCE = 1e-3
@@ -78,7 +93,9 @@ AXIS_WORDS = ("X", "Y", "Z", "A", "C")
 _MOTION = {0: 0, 10: 1, 20: 2, 30: 3}
 _PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
 #: G codes accepted and kept for an output program (they do not change the axis commands).
-PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 490, 610, 611, 640, 800])
+PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 431, 432, 490, 610, 611, 640, 800])
+#: Tool length codes whose axis words are the offset (LinuxCNC's G43.1, G43.2), not a move.
+_TOOL_LENGTH_WORDS = frozenset([431, 432])
 #: Work offsets G54-G59.3 and G54.1 (Pn), in tenths.
 _WORK_OFFSET_G = (540, 550, 560, 570, 580, 590, 591, 592, 593, 541)
 #: Non-modal codes (RS274/NGC group 0): at most one per block.
@@ -88,7 +105,7 @@ _AXIS_WORD_CODES = frozenset([100, 280, 300, 920])
 _MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940])
 _MODAL_GROUPS = (frozenset(_MOTION), frozenset(_PLANES), frozenset([200, 210]),
                  frozenset([900, 910]), frozenset([901, 911]), frozenset([930, 940]),
-                 frozenset([430, 434, 435, 490]), frozenset(_WORK_OFFSET_G),
+                 frozenset([430, 431, 434, 435, 490]), frozenset(_WORK_OFFSET_G),
                  frozenset(_NON_MODAL), frozenset([610, 611, 640]))
 _KNOWN_G = (frozenset(_MOTION) | PASSTHROUGH_G | _MODE_G | frozenset(_WORK_OFFSET_G)
             | frozenset(_NON_MODAL))
@@ -105,20 +122,29 @@ _UNSUPPORTED_G = {
 _STOP_M = {0: "program stop", 1: "optional stop", 6: "tool change", 2: "end", 30: "end"}
 #: M codes read (stops, spindle, coolant, overrides, tool number, I/O).
 _KNOWN_M = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30, 48, 49, 50, 51, 52, 53, 61, 62, 63,
-                      64, 65, 66, 67, 68])
+                      64, 65, 66, 67, 68, 70, 71, 72, 73, 98, 99])
 #: Words that M codes read (LinuxCNC): M61 Q (tool number), M62-M65 P (digital output),
 #: M66 P/E L Q (wait for an input), M67/M68 E Q (analog output), M50-M53 P (overrides).
 _M_WORDS = {61: "Q", 62: "P", 63: "P", 64: "P", 65: "P", 66: "PELQ", 67: "EQ", 68: "EQ",
-            50: "P", 51: "P", 52: "P", 53: "P"}
-_SUBROUTINE_M = {98: "subprogram calls (M98) are not supported",
-                 99: "subprogram returns (M99) are not supported"}
+            50: "P", 51: "P", 52: "P", 53: "P", 98: "PL"}
+#: M codes that steer the reading (subprograms, modal state), not kept for an output program.
+_FLOW_M = frozenset([70, 71, 72, 73, 98, 99])
+#: Most times one loop may run, and deepest calls may nest (runaway guards).
+MAX_LOOP_ITERATIONS = 1_000_000
+MAX_CALL_DEPTH = 100
+#: LinuxCNC's parameter slots of the axes (5161 + slot: X Y Z A B C U V W).
+_SLOTS = {0: "X", 1: "Y", 2: "Z", 3: "A", 4: "B", 5: "C"}
+_FANUC_MACRO = re.compile(r"(?:N\d+)?(IF\[|GOTO\d|WHILE\[|END\d|DO\d)")
+# kinds of line (see _Reader.prepare)
+_PLAIN, _SKIP, _COMMENT, _SETTINGS, _GENERAL = range(5)
+# lines that may be O-word statements (a cheap test before a line's code is worked out)
+_MAYBE_OWORD = re.compile(r"\s*/?\s*[oO]")
 _PASSTHROUGH_WORDS = frozenset("STHD")
 _ZERO = (0.0,) * 5
+_NO_CENTRE = (math.nan,) * 3
 
 _WORD = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^()]*)\)")
-_CONTROL = re.compile(r"^O(?:\d+|<[^>]*>)?(SUB|ENDSUB|CALL|RETURN|IF|ELSEIF|ELSE|ENDIF|DO|"
-                      r"WHILE|ENDWHILE|REPEAT|ENDREPEAT|BREAK|CONTINUE)")
 _TRAORI = re.compile(r"TRAORI(?:\([^)]*\))?")
 _BLANKS = str.maketrans("", "", " \t\r\f\v")
 
@@ -208,15 +234,23 @@ class _Reader:
         self.g92 = list(_ZERO)
         self.g92_stored = list(_ZERO)
         self.said_offsets = self.said_reference = False
+        # the language: parameters, call frames, compiled lines, the O-word structure
+        self.params = [0.0] * (MAX_PARAMETER + 1)
+        self.globals = {}
+        self.frames = [_Frame("main", "", 0)]
+        self.compiled = {}
+        self.structure = None
+        self.jump = None             # the next line after M98/M99
+        self.value = self.value_returned = 0.0
+        self.saved_state = None      # M70 / M73
         self.start = None
         self.start_line = 0
         self.start_tcp = tcp
         # per move: programmed end (mm, deg), rapid, duration, feed, line, tcp, tolerance;
-        # single moves in lists, sealed into chunks of arrays (with the vectorized ones)
-        self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
-        self.lines, self.tcp_moves, self.tolerances = [], [], []
+        # per programmed move: kind, end, centre, plane, turns, G93, F, line, tcp, first move
+        self.moves = _Table()
+        self.programmed = _Table()
         self.path_tolerance = math.nan   # G64 P (mm); 0 after G61/G61.1; NaN: not given
-        self.chunks = []
         self.n_moves = 0
         self.stops, self.passthrough, self.notices = [], [], []
         self.skipped = Counter()
@@ -230,35 +264,115 @@ class _Reader:
 
     # ------------------------------------------------------------------ program
     def run(self, text: str) -> Program:
-        for row, raw in enumerate(text.splitlines(), start=1):
-            self.row = row
-            if self.block(raw):
+        lines = text.splitlines()
+        self.structure = self.scan(lines)
+        self.prepared = [None] * len(lines)
+        owords = self.structure.owords
+        pc, n = 0, len(lines)
+        while pc < n:
+            self.row = pc + 1
+            oword = owords.get(pc)
+            if oword is not None:
+                self.flush()
+                pc = self.control(pc, oword)
+                if pc is None:
+                    break
+                continue
+            if self.block(pc, lines[pc]):
                 break
+            if self.jump is not None:
+                pc, self.jump = self.jump, None
+                continue
+            pc += 1
+        else:
+            if self.frames[-1].kind != "main":
+                frame = self.frames[-1]
+                self.fail(f"the program ends inside subprogram {frame.name} (called on line "
+                          f"{frame.return_pc}): M99 is missing")
         self.flush()
         return self.finish()
 
-    def block(self, raw: str) -> bool:
+    def scan(self, lines):
+        """The O-word structure of the program (subroutines, branches, loops, labels)."""
+        codes = [None] * len(lines)
+        for index, raw in enumerate(lines):
+            if _MAYBE_OWORD.match(raw):
+                codes[index] = self.code_of(raw)[0]
+        try:
+            return scan_structure(codes)
+        except StructureError as exc:
+            raise ProgramError(exc.message, source=self.source, row=exc.index + 1,
+                               field=exc.word) from None
+
+    def block(self, pc: int, raw: str) -> bool:
         """Execute one line; True after the program end (M2/M30). Plain motion blocks
         (``[N..] [G0|G1] axis words [F..]`` in the machine's axis order) are collected and
-        executed together by :meth:`flush`."""
-        if self.start is not None and "(" not in raw and ";" not in raw:
+        executed together by :meth:`flush`. What a line is, is worked out once (loops and
+        subroutines run lines again)."""
+        prepared = self.prepared[pc]
+        if prepared is None:
+            prepared = self.prepared[pc] = self.prepare(raw)
+        kind = prepared[0]
+        if kind == _PLAIN:
+            if self.start is not None:
+                self.pending.append((self.row, prepared[1], raw))
+                return False
+            prepared = self.prepared[pc] = self.prepare(raw, plain=False)
+            kind = prepared[0]
+        self.flush()
+        if kind == _SKIP:
+            if prepared[1]:
+                self.skipped["/"] += 1
+            return False
+        if kind == _COMMENT:
+            self.passthrough.append((self.row, prepared[1]))
+            return False
+        if kind == _SETTINGS:
+            self.evaluate(prepared[1])
+            return False
+        _, code, traori, trafoof, text, comments = prepared
+        words = self.evaluate(code) if needs_macro_reader(code) else self.tokens(code)
+        return self.execute(words, traori, trafoof, text, comments)
+
+    def prepare(self, raw: str, plain: bool = True):
+        """What kind of line ``raw`` is, and what executing it needs."""
+        if plain and "(" not in raw and ";" not in raw:
             code = raw.upper().translate(_BLANKS)
             if code and code[0] not in "%/":
-                plain = self.plain.fullmatch(code)
-                if plain is not None:
-                    self.pending.append((self.row, plain.groups(), raw))
-                    return False
-        self.flush()
-        return self.general(raw)
+                match = self.plain.fullmatch(code)
+                if match is not None:
+                    return (_PLAIN, match.groups())
+        s = raw.lstrip()
+        if s[:1] == "/" and self.block_delete:
+            return (_SKIP, True)
+        code, comments = self.code_of(raw)
+        if not code:
+            return (_COMMENT, raw.strip()) if comments else (_SKIP, False)
+        traori = trafoof = False
+        if "TRA" in code:
+            code, n_on = _TRAORI.subn("", code)
+            code, n_off = re.subn("TRAFOOF", "", code)
+            traori, trafoof = n_on > 0, n_off > 0
+        fanuc = _FANUC_MACRO.match(code)
+        if fanuc:
+            self.fail("Fanuc macro statements (IF GOTO, WHILE DO END) are not supported; "
+                      "LinuxCNC's O-word if and while are", fanuc.group())
+        if code[:1] == "#" and not comments and needs_macro_reader(code):
+            compiled = self.compile(code)
+            if not compiled.words:
+                return (_SETTINGS, code)
+        return (_GENERAL, code, traori, trafoof, raw.strip(), comments)
 
     def flush(self):
         """Execute the collected plain blocks at once; if any of them needs a word-by-word
         look (an error to report), all are executed one by one instead."""
         pending, self.pending = self.pending, []
         if pending and not self.plain_blocks(pending):
-            for row, _, raw in pending:
-                self.row = row
+            row = self.row
+            for pending_row, _, raw in pending:
+                self.row = pending_row
                 self.general(raw)
+            self.row = row
 
     def plain_blocks(self, pending) -> bool:
         """Vectorized :meth:`general` for plain blocks: False (nothing changed) if one of them
@@ -312,58 +426,83 @@ class _Reader:
                     feed_s = feed[moving] / 60.0
             duration[rapid] = math.nan
             feed_s[rapid] = math.nan
-            self.add_many(end, rapid, duration, feed_s, rows[moving])
+            k = end.shape[0]
+            f_programmed = f_word[moving] if self.inverse_time else feed[moving]
+            programmed = (np.where(rapid, 0, 1).astype(np.int8), end,
+                          np.full((k, 3), math.nan), np.zeros(k, np.int8), np.zeros(k, np.int64),
+                          np.full(k, self.inverse_time), np.where(rapid, math.nan, f_programmed),
+                          rows[moving], np.full(k, self.tcp),
+                          self.n_moves + np.arange(k, dtype=np.int64))
+            self.add_many(end, rapid, duration, feed_s, rows[moving], programmed)
         self.motion = int(motion[-1])
         if not self.inverse_time:
             self.feed = float(feed[-1])
         return True
 
-    def general(self, raw: str) -> bool:
-        """Execute one line word by word (every construct, every error)."""
+    def code_of(self, raw: str):
+        """(code, comments) of a line: the code upper case without blanks and comments
+        (None for a line that is skipped: empty, ``%``, or block-deleted)."""
         s = raw.strip()
         if not s or s[0] == "%":
-            return False
+            return None, []
         if s[0] == "/":
             if self.block_delete:
-                self.skipped["/"] += 1
-                return False
+                return None, []
             s = s[1:]
         comments = []
+        if ";" in s:
+            # a ';' outside a ( ) comment makes the rest of the line a comment
+            depth = 0
+            for i, c in enumerate(s):
+                if c == "(":
+                    depth += 1
+                elif c == ")":
+                    depth -= 1
+                elif c == ";" and depth <= 0:
+                    s, rest = s[:i], s[i + 1:]
+                    break
+            else:
+                rest = None
+        else:
+            rest = None
         if "(" in s or ")" in s:
             comments = _COMMENT.findall(s)
             s = _COMMENT.sub(" ", s)
             if "(" in s or ")" in s:
                 self.fail("unbalanced or nested '(' comment")
-        if ";" in s:
-            s, _, rest = s.partition(";")
+        if rest is not None:
             comments.append(rest)
-        code = s.upper().translate(_BLANKS)
-        if not code:
-            if comments:
-                self.passthrough.append((self.row, raw.strip()))
-            return False
-        traori = trafoof = False
-        if "TRA" in code:
-            code, n_on = _TRAORI.subn("", code)
-            code, n_off = re.subn("TRAFOOF", "", code)
-            traori, trafoof = n_on > 0, n_off > 0
-        words = self.tokens(code)
-        return self.execute(words, traori, trafoof, raw.strip(), comments)
+        return s.upper().translate(_BLANKS), comments
 
-    def tokens(self, code: str) -> list[tuple[str, str]]:
-        if "#" in code or "[" in code or "=" in code:
-            at = min(i for i in (code.find("#"), code.find("["), code.find("=")) if i >= 0)
-            self.fail("macros and variables (#, [ ], =) are not supported",
-                      _word_at(code, at))
-        control = _CONTROL.match(code)
-        if control:
-            self.fail("subroutines and control flow (O-word " + control.group(1).lower()
-                      + ") are not supported", control.group())
+    def general(self, raw: str) -> bool:
+        """Execute one line word by word (every construct, every error)."""
+        prepared = self.prepare(raw, plain=False)
+        kind = prepared[0]
+        if kind == _SKIP:
+            if prepared[1]:
+                self.skipped["/"] += 1
+            return False
+        if kind == _COMMENT:
+            self.passthrough.append((self.row, prepared[1]))
+            return False
+        if kind == _SETTINGS:
+            self.evaluate(prepared[1])
+            return False
+        _, code, traori, trafoof, text, comments = prepared
+        words = self.evaluate(code) if needs_macro_reader(code) else self.tokens(code)
+        return self.execute(words, traori, trafoof, text, comments)
+
+    def tokens(self, code: str) -> list[tuple[str, float, str, str]]:
+        if "=" in code:
+            at = code.find("=")
+            self.fail("'=' sets a parameter only after one (#1 = 5, #<depth> = -2)",
+                      _word_at(code, max(at - 1, 0)))
         words, pos = [], 0
         for match in _WORD.finditer(code):
             if match.start() != pos:
                 break
-            words.append((match.group(1), match.group(2)))
+            number = match.group(2)
+            words.append((match.group(1), float(number), number, match.group()))
             pos = match.end()
         if pos != len(code):
             char = code[pos]
@@ -371,29 +510,362 @@ class _Reader:
                 bad = _word_at(code, pos)
                 self.fail(f"cannot parse number {bad!r}", bad)
             if char in "0123456789.+-" and words:
-                start = pos - len("".join(words[-1]))
-                bad = _word_at(code, start)
+                bad = _word_at(code, pos - len(words[-1][3]))
                 self.fail(f"cannot parse number {bad!r}", bad)
             self.fail(f"cannot parse {_word_at(code, pos)!r}")
         return words
+
+    # ------------------------------------------------------------------ parameters
+    def evaluate(self, code: str) -> list[tuple[str, float, str, str]]:
+        """The words of a line with parameters and expressions, evaluated; its parameter
+        settings take effect after every value of the line is read (LinuxCNC)."""
+        compiled = self.compile(code)
+        try:
+            words = []
+            for letter, value, spelled, literal in compiled.words:
+                number = value(self)
+                if not math.isfinite(number):
+                    self.fail(f"value is not finite in {spelled!r}", spelled)
+                words.append((letter, number, literal or format_number(number), spelled))
+            settings = [(target if not callable(target) else target(self), value(self), text)
+                        for target, value, text in compiled.settings]
+        except NgcError as exc:
+            self.fail(exc.message, exc.word)
+        for target, number, text in settings:
+            self.set_parameter(target, number, text)
+        return words
+
+    def compile(self, code: str):
+        compiled = self.compiled.get(code)
+        if compiled is None:
+            try:
+                compiled = compile_line(code)
+            except NgcError as exc:
+                self.fail(exc.message, exc.word)
+            self.compiled[code] = compiled
+        return compiled
+
+    # the parameter context of compiled expressions (see _ngc)
+    def number(self, n: int) -> float:
+        system = self.system_parameter(n)
+        return self.params[n] if system is None else system
+
+    def named(self, name: str) -> float:
+        value = self.named_value(name)
+        if value is None:
+            if name.startswith(("_HAL[", "_INI[")):
+                raise NgcError(f"#<{name.lower()}> reads {'a HAL pin' if name[1] == 'H' else 'the INI file'} "
+                               "of a running LinuxCNC, which precontour does not have",
+                               f"#<{name}>")
+            raise NgcError(f"named parameter #<{name.lower()}> is not defined", f"#<{name}>")
+        return value
+
+    def exists(self, name: str) -> bool:
+        return self.named_value(name) is not None
+
+    def named_value(self, name: str):
+        if name.startswith("_"):
+            value = self.predefined(name)
+            return self.globals.get(name) if value is None else value
+        return self.frames[-1].locals.get(name)
+
+    def set_parameter(self, target, value, text):
+        if isinstance(target, str):
+            if target.startswith("_"):
+                if self.predefined(target) is not None:
+                    self.fail(f"#<{target.lower()}> is read-only", text)
+                self.globals[target] = value
+            else:
+                self.frames[-1].locals[target] = value
+            return
+        if not 1 <= target <= MAX_PARAMETER:
+            self.fail(f"parameter #{target} is out of range (#1 ... #{MAX_PARAMETER})", text)
+        if self.system_parameter(target) is not None:
+            self.fail(f"parameter #{target} is the controller's stored position or offset "
+                      "data: set it with G10, G28.1/G30.1 or G92", text)
+        self.params[target] = value
+
+    def program_position(self) -> list[float]:
+        """The current position in program coordinates and units (work and G92 offsets
+        taken off), NaN where not known."""
+        scale = INCH if self.inch else 1.0
+        return [(p - o - g) / (scale if i < 3 else 1.0)
+                for i, (p, o, g) in enumerate(zip(self.prog, self.g5x, self.g92))]
+
+    def system_parameter(self, n: int):
+        """LinuxCNC's stored parameters that precontour keeps itself (None for the others):
+        5161-5169 G28 and 5181-5189 G30 positions, 5211-5219 the G92 offset, 5220 the work
+        offset number, 5221-5409 the work offsets, 5420-5428 the current position."""
+        if not 5161 <= n <= 5428:
+            return None
+
+        def axis_value(vector, slot):
+            # the machine's axis in LinuxCNC's slot (0 for the axes it does not have)
+            i = self.axis_index.get(_SLOTS.get(slot))
+            return 0.0 if i is None else float(vector[i])
+
+        if 5161 <= n <= 5169 or 5181 <= n <= 5189:
+            reference = self.reference.get(280 if n < 5180 else 300) or _ZERO
+            return axis_value(reference, (n - 5161) % 20)
+        if 5211 <= n <= 5219:
+            return axis_value(self.g92, n - 5211)
+        if n == 5220:
+            return float(WORK_OFFSETS.index(self.work_offset) + 1
+                         if self.work_offset in WORK_OFFSETS else 1)
+        if 5221 <= n <= 5409:
+            k, slot = divmod(n - 5221, 20)
+            if slot > 9:
+                return None
+            if slot == 9:
+                return 0.0   # the rotation R (G10 L2 R is refused)
+            return axis_value(self.offsets.get(WORK_OFFSETS[k], _ZERO), slot)
+        if 5420 <= n <= 5428:
+            value = axis_value(self.program_position(), n - 5420)
+            return value if math.isfinite(value) else 0.0
+        return None
+
+    def predefined(self, name: str):
+        """LinuxCNC's predefined named parameters (#<_x>, #<_metric>, ...), None if not one."""
+        if len(name) == 2 and name[1] in "XYZABCUVW":
+            letter = name[1]
+            if letter not in self.axis_index:
+                return 0.0
+            value = self.program_position()[self.axis_index[letter]]
+            return value if math.isfinite(value) else 0.0
+        if name == "_VALUE":
+            return self.value
+        if name == "_VALUE_RETURNED":
+            return self.value_returned
+        if name == "_LINE":
+            return float(self.row)
+        if name == "_CALL_LEVEL":
+            return float(len(self.frames) - 1)
+        flag = {"_METRIC": not self.inch, "_IMPERIAL": self.inch,
+                "_ABSOLUTE": not self.incremental, "_INCREMENTAL": self.incremental,
+                "_INVERSE_TIME": self.inverse_time, "_UNITS_PER_MINUTE": not self.inverse_time,
+                "_TASK": False}.get(name)
+        if flag is not None:
+            return 1.0 if flag else 0.0
+        if name == "_FEED":
+            feed = self.feed / (INCH if self.inch else 1.0)
+            return feed if math.isfinite(feed) else 0.0
+        if name == "_MOTION_MODE":
+            return float(-1 if self.motion is None else self.motion * 10)
+        if name == "_PLANE":
+            return float({(0, 1, 2): 170, (2, 0, 1): 180, (1, 2, 0): 190}[self.plane])
+        if name == "_COORD_SYSTEM":
+            if self.work_offset not in WORK_OFFSETS:
+                return 541.0
+            return float(int(round(float(self.work_offset[1:]) * 10)))
+        return None
+
+    # ------------------------------------------------------------------ control flow
+    def control(self, pc: int, oword: OWord):
+        """Execute an O-word line; the index of the next line to run (None: program end)."""
+        st = self.structure
+        key = oword.keyword
+        frame = self.frames[-1]
+        if key == "SUB":
+            return st.subs[oword.label][1] + 1         # a definition: skip it
+        if key in ("ENDSUB", "RETURN"):
+            if frame.kind != "sub" or key == "ENDSUB" and frame.name != oword.label:
+                self.fail(f"o{oword.label.lower()} {key.lower()} outside a call of "
+                          f"o{st.sub_of.get(pc, oword.label).lower()}", oword.text)
+            if oword.args:
+                self.value, self.value_returned = self.condition(oword, 0), 1.0
+            else:
+                self.value_returned = 0.0
+            return self.leave()
+        if key == "CALL":
+            return self.call(pc, oword)
+        if key in ("IF", "ELSEIF"):
+            if key == "ELSEIF":                          # reached from a branch that ran
+                return st.branches[pc][1] + 1
+            at = pc
+            while True:
+                line = st.owords[at]
+                if line.keyword == "ENDIF":
+                    return at + 1
+                if line.keyword == "ELSE":
+                    return at + 1
+                if self.condition(line, 0, at) != 0.0:
+                    return at + 1
+                at = st.branches[at][0]
+        if key == "ELSE":
+            return st.branches[pc][1] + 1
+        if key == "ENDIF":
+            return pc + 1
+        kind, first, last = st.loops[pc]
+        if key == "WHILE" and kind == "WHILE" or key == "ENDWHILE":
+            if self.condition(st.owords[first], 0, first) != 0.0:
+                self.iterate(frame, first)
+                return first + 1
+            frame.iterations.pop(first, None)
+            return last + 1
+        if key == "DO":
+            return pc + 1
+        if key == "WHILE":                               # the end of a do-while
+            if self.condition(oword, 0) != 0.0:
+                self.iterate(frame, first)
+                return first + 1
+            frame.iterations.pop(first, None)
+            return last + 1
+        if key == "REPEAT":
+            count = self.condition(oword, 0)
+            count = round(count) if abs(count - round(count)) <= 1e-4 else math.floor(count)
+            if count <= 0:
+                return last + 1
+            frame.repeats[first] = count
+            return pc + 1
+        if key == "ENDREPEAT":
+            left = frame.repeats.get(first, 1) - 1
+            if left > 0:
+                frame.repeats[first] = left
+                self.iterate(frame, first)
+                return first + 1
+            frame.repeats.pop(first, None)
+            frame.iterations.pop(first, None)
+            return last + 1
+        if key == "BREAK":
+            frame.repeats.pop(first, None)
+            frame.iterations.pop(first, None)
+            return last + 1
+        if key == "CONTINUE":
+            # the next iteration: a while or a do-while tests its condition, a repeat counts
+            return last if kind != "WHILE" else first
+        raise AssertionError(key)  # pragma: no cover - every keyword is handled above
+
+    def condition(self, oword: OWord, k: int, at=None) -> float:
+        """The value of the ``k``-th bracket of an O-word line (its condition or count)."""
+        if at is not None:
+            self.row = at + 1
+        if len(oword.args) <= k:
+            self.fail(f"o{oword.label.lower()} {oword.keyword.lower()} needs its value in "
+                      "[ ]", oword.text)
+        try:
+            return oword.args[k](self)
+        except NgcError as exc:
+            self.fail(exc.message, exc.word or oword.text)
+
+    def iterate(self, frame, first):
+        count = frame.iterations.get(first, 0) + 1
+        if count > MAX_LOOP_ITERATIONS:
+            self.row = first + 1
+            oword = self.structure.owords[first]
+            self.fail(f"o{oword.label.lower()} {oword.keyword.lower()} ran {MAX_LOOP_ITERATIONS} "
+                      "times: a runaway loop?", oword.text)
+        frame.iterations[first] = count
+
+    def call(self, pc: int, oword: OWord):
+        """``oN call [a] [b] ...``: #1, #2, ... are the arguments in the subroutine (the
+        caller's #1-#30 come back after it), its named parameters are its own."""
+        sub = self.structure.subs.get(oword.label)
+        if sub is None:
+            name = oword.label.lower()
+            where = (f" (LinuxCNC looks for {name[1:-1]}.ngc in its SUBROUTINE_PATH; precontour "
+                     "reads one file)" if name.startswith("<") else "")
+            self.fail(f"subroutine o{name} is not defined in this file{where}", oword.text)
+        if len(oword.args) > 30:
+            self.fail("a call passes at most 30 arguments (#1 ... #30)", oword.text)
+        try:
+            args = [fn(self) for fn in oword.args]
+        except NgcError as exc:
+            self.fail(exc.message, exc.word or oword.text)
+        self.enter(_Frame("sub", oword.label, pc + 1, saved=self.params[1:31]))
+        self.params[1:31] = args + [0.0] * (30 - len(args))
+        return sub[0] + 1
+
+    def enter(self, frame):
+        if len(self.frames) > MAX_CALL_DEPTH:
+            self.fail(f"calls nested more than {MAX_CALL_DEPTH} deep: a runaway recursion?")
+        self.frames.append(frame)
+
+    def leave(self):
+        frame = self.frames.pop()
+        if frame.saved is not None:
+            self.params[1:31] = frame.saved
+        if frame.auto_restore is not None:      # M73 in the subroutine
+            self.restore_state(frame.auto_restore)
+        return frame.return_pc
+
+    def modal_state(self, m_numbers, m_codes):
+        """M70 save the modal state, M71 forget it, M72 restore it, M73 save it and restore
+        it when the subroutine returns (LinuxCNC): units, distance modes, feed mode and rate,
+        plane, path tolerance."""
+        word = next(w for c, w in m_codes if c // 10 in (70, 71, 72, 73))
+        if len(m_numbers & {70, 71, 72, 73}) > 1:
+            self.fail("two of M70-M73 in one block", word)
+        state = (self.inch, self.incremental, self.arc_absolute, self.inverse_time, self.feed,
+                 self.plane, self.path_tolerance)
+        if 70 in m_numbers:
+            self.saved_state = state
+        elif 71 in m_numbers:
+            self.saved_state = None
+        elif 72 in m_numbers:
+            if self.saved_state is None:
+                self.fail("M72 without a state saved by M70", word)
+            self.restore_state(self.saved_state)
+        else:
+            if self.frames[-1].kind != "sub":
+                self.fail("M73 is for a subroutine (it restores the state when it returns)",
+                          word)
+            self.frames[-1].auto_restore = state
+
+    def restore_state(self, state):
+        (self.inch, self.incremental, self.arc_absolute, self.inverse_time, self.feed,
+         self.plane, self.path_tolerance) = state
+
+    def subprogram(self, values, spelled, m_word):
+        """Fanuc's M98 P<program> L<count> (also P<count><4-digit program>): jump to the
+        line ``O<program>``; M99 comes back. Parameters are shared with the caller."""
+        if "P" not in values:
+            self.fail("M98 needs the subprogram number P", m_word)
+        number = values["P"]
+        count = values.get("L", 1.0)
+        if number != int(number) or number < 0:
+            self.fail(f"M98 {spelled['P']}: not a program number", spelled["P"])
+        if count != int(count) or count < 0:
+            self.fail(f"M98 {spelled['L']}: not a repeat count", spelled["L"])
+        number, count = int(number), int(count)
+        labels = self.structure.labels
+        if number not in labels and number >= 10000 and number % 10000 in labels:
+            count, number = number // 10000, number % 10000   # Fanuc: P<count><program>
+        if number not in labels:
+            self.fail(f"M98: there is no O{number} (its subprogram) in this file",
+                      spelled["P"])
+        if count == 0:
+            return
+        self.enter(_Frame("m98", f"O{number}", self.row, locals=self.frames[-1].locals,
+                          start=labels[number], left=count))
+        self.jump = labels[number] + 1
+
+    def subprogram_return(self, m_word):
+        frame = self.frames[-1]
+        if frame.kind != "m98":
+            self.fail("M99 outside a subprogram: in the main program it would restart it "
+                      "without end (Fanuc); end the program with M30", m_word)
+        frame.left -= 1
+        if frame.left > 0:
+            self.jump = frame.start + 1
+            return
+        self.frames.pop()
+        self.jump = frame.return_pc
 
     def execute(self, words, traori, trafoof, raw, comments) -> bool:
         values: dict[str, float] = {}
         spelled: dict[str, str] = {}
         g_codes: list[tuple[int, str]] = []
         m_codes: list[tuple[int, str]] = []
-        for letter, number in words:
-            word = letter + number
+        for letter, value, _, word in words:
             if letter == "G":
-                g_codes.append((int(round(float(number) * 10)), word))
+                g_codes.append((int(round(value * 10)), word))
             elif letter == "M":
-                m_codes.append((int(round(float(number) * 10)), word))
+                m_codes.append((int(round(value * 10)), word))
             elif letter in ("N", "O"):
                 continue
             elif letter in values:
                 self.fail(f"word {letter} appears twice in the block", word)
             else:
-                value = float(number)
                 if not math.isfinite(value):
                     self.fail(f"value is not finite in {word!r}", word)
                 values[letter] = value
@@ -423,8 +895,6 @@ class _Reader:
                 self.fail(f"unsupported M code {word}", word)
             number = code // 10
             m_numbers.add(number)
-            if number in _SUBROUTINE_M:
-                self.fail(_SUBROUTINE_M[number], word)
             if number in self.tcp_on or number in self.tcp_off:
                 switches = [w for c, w in m_codes if c // 10 in self.tcp_on | self.tcp_off]
                 if len(switches) > 1:
@@ -435,11 +905,14 @@ class _Reader:
                 self.notices.append(f"{self.source}, line {self.row}: M{number} is not a code "
                                     "precontour knows; kept as a pass-through line")
             self.skipped[f"M{number}"] += 1
-        # the words an M code of this block reads (M61 Q, M62-M68 P E L Q)
-        m_words = set().union(*(_M_WORDS.get(n, "") for n in m_numbers))
+        # the words an M code of this block reads (M61 Q, M62-M68 P E L Q, M98 P L)
+        m_words = set().union(*(_M_WORDS.get(n, "PQ" if 100 <= n <= 199 else "")
+                                for n in m_numbers))
+        if m_numbers & {70, 71, 72, 73}:
+            self.modal_state(m_numbers, m_codes)
         moves_axes = False
         for letter in spelled:
-            if letter in self.axis_index:
+            if letter in self.axis_index or letter in "@^":
                 moves_axes = True
             elif (letter not in "FIJKRPQL" and letter not in _PASSTHROUGH_WORDS
                   and letter not in m_words):
@@ -458,39 +931,43 @@ class _Reader:
             self.fail(f"{_g_name(non_modal)} and {motion_word} both use the axis words of the "
                       "block", motion_word)
         kept = []  # words an output program keeps, as written, in their order
-        for letter, number in words:
+        for letter, value, number, _ in words:
             if letter == "G":
-                code = int(round(float(number) * 10))
+                code = int(round(value * 10))
                 if code in PASSTHROUGH_G:
                     kept.append(letter + number)
                     self.skipped[_g_name(code)] += 1
-                    if code == 541 and "P" in spelled:
-                        kept.append(spelled["P"])
-            elif letter == "M" and int(round(float(number))) in self.tcp_on | self.tcp_off:
-                continue  # a TCP switch: interpreted, not kept (as G43.4)
+            elif letter == "M" and int(round(value)) in self.tcp_on | self.tcp_off | _FLOW_M:
+                continue  # interpreted, not kept (TCP switches as G43.4; subprograms; state)
             elif letter == "M" or letter in _PASSTHROUGH_WORDS or letter in m_words:
                 if letter != "M":
                     self.skipped[letter] += 1
                 # H goes with G43; with G43.4/G43.5 (TCP, not kept) it would stand alone
-                if letter != "H" or 430 in codes:
+                if letter != "H" or 430 in codes or 432 in codes:
                     kept.append(letter + number)
+            elif letter in self.axis_index and codes & _TOOL_LENGTH_WORDS:
+                kept.append(letter + number)
+        # a line with parameters or expressions is kept with its values
+        evaluated = any(spelled != letter + number for letter, _, number, spelled in words)
 
-        if 200 in codes:
-            self.inch = True
-        if 210 in codes:
-            self.inch = False
-        scale = INCH if self.inch else 1.0
+        # RS274/NGC's order: feed mode, F (in the units before this block's G20/G21), ...
         if 930 in codes:
             self.inverse_time = True
         if 940 in codes:
             self.inverse_time = False
             self.feed = math.nan
-        f_word = values.get("F")
+        f_word = self.block_f = values.get("F")
         if f_word is not None:
             if not f_word > 0:
                 self.fail(f"feed must be positive, got {spelled['F']}", spelled["F"])
             if not self.inverse_time:
-                self.feed = f_word * scale
+                self.feed = f_word * (INCH if self.inch else 1.0)
+        # ... then units
+        if 200 in codes:
+            self.inch = True
+        if 210 in codes:
+            self.inch = False
+        scale = INCH if self.inch else 1.0
         dwell = 40 in codes
         for code in (170, 180, 190):
             if code in codes:
@@ -534,8 +1011,16 @@ class _Reader:
 
         # word checks that depend on the codes
         arc_words = [spelled[k] for k in ("IJK" if 100 in codes else "IJKR") if k in spelled]
-        is_arc = (self.motion in (2, 3) and (moves_axes or motion_here in (2, 3)) and not dwell
-                  and non_modal is None)
+        if codes & _TOOL_LENGTH_WORDS:
+            if any(code in _MOTION for code in codes) and moves_axes:
+                word = g_word[min(codes & _TOOL_LENGTH_WORDS)]
+                self.fail(f"{word} and a motion both use the axis words of the block", word)
+            moves_axes = False    # the words are the tool length offset (not applied)
+        centre_only = not moves_axes and any(k in spelled for k in "IJK")
+        is_arc = (self.motion in (2, 3) and (moves_axes or motion_here in (2, 3) or centre_only)
+                  and (non_modal is None or dwell and motion_here is not None))
+        if dwell and is_arc and "P" in spelled:
+            self.fail("G4 P and an arc's turns P in one block", spelled["P"])
         if arc_words and not is_arc:
             self.fail(f"word {arc_words[0]!r} is read only with G2/G3", arc_words[0])
         p_readers = dwell or 640 in codes or is_arc or 541 in codes or 100 in codes
@@ -547,17 +1032,22 @@ class _Reader:
                       spelled["Q"])
 
         if dwell:
-            if motion_here is not None:
-                self.fail("dwell (G4) and a motion code in one block", "G4")
-            seconds = values.get("P", values.get("X"))
-            extra = [spelled[a] for a in self.axes if a in spelled and a != "X"]
-            if "P" in values and "X" in values:
-                extra.insert(0, spelled["X"])
-            if extra:
-                self.fail(f"axis word {extra[0]!r} in a dwell (G4) block", extra[0])
+            # RS274/NGC: the dwell before the block's motion; with a motion code the axis
+            # words are that motion's, else Fanuc's X is the time
+            seconds = values.get("P")
+            if motion_here is None:
+                if seconds is None:
+                    seconds = values.get("X")
+                extra = [spelled[a] for a in self.axes if a in spelled and a != "X"]
+                if "P" in values and "X" in values:
+                    extra.insert(0, spelled["X"])
+                if extra:
+                    self.fail(f"axis word {extra[0]!r} in a dwell (G4) block", extra[0])
             if seconds is None or not seconds >= 0:
-                self.fail("dwell (G4) needs a time P (seconds) >= 0", "G4")
+                self.fail("dwell (G4) needs a time P (seconds) >= 0", g_word[40])
             self.stops.append(Stop(self.n_moves, self.row, "dwell", float(seconds)))
+            if motion_here is not None and moves_axes:
+                self.move(values, spelled, scale, g_codes)
         elif non_modal in (280, 300):
             self.reference_return(non_modal, values, spelled, scale, g_word[non_modal])
         elif non_modal in (281, 301):
@@ -574,7 +1064,8 @@ class _Reader:
                           g_word[530])
             if moves_axes:
                 self.machine_move(self.motion == 0, values, spelled, scale)
-        elif moves_axes:
+        elif moves_axes or is_arc and centre_only:
+            # (G2/G3 with a centre and no axis words: a full circle, as in LinuxCNC)
             self.move(values, spelled, scale, g_codes)
 
         end = False
@@ -583,9 +1074,16 @@ class _Reader:
             if kind is not None:
                 self.stops.append(Stop(self.n_moves, self.row, kind))
                 end = end or kind == "end"
+        if 98 in m_numbers and 99 in m_numbers:
+            self.fail("M98 and M99 in one block", spelled.get("P"))
+        if 98 in m_numbers:
+            self.subprogram(values, spelled, next(w for c, w in m_codes if c == 980))
+        elif 99 in m_numbers:
+            self.subprogram_return(next(w for c, w in m_codes if c == 990))
         if kept or comments:
             motion_words = moves_axes or dwell or "F" in spelled or any(
-                code not in PASSTHROUGH_G for code in codes) or traori or trafoof or m_switch
+                code not in PASSTHROUGH_G for code in codes) or traori or trafoof or m_switch \
+                or evaluated
             if motion_words:
                 text = " ".join(kept + [f"({c.strip()})" for c in comments if c.strip()])
             else:
@@ -821,7 +1319,29 @@ class _Reader:
                 if not abs(value) <= MAX_COORDINATE:
                     self.fail(f"coordinate {spelled[letter]!r} is out of range", spelled[letter])
                 target[i] = value
+        if "@" in values or "^" in values:
+            target[0], target[1] = self.polar(values, spelled, scale)
         return target
+
+    def polar(self, values, spelled, scale):
+        """LinuxCNC's polar coordinates: X Y from a radius @ and an angle ^ (degrees) about
+        the work origin, in any plane; G91 adds them to the current radius and angle."""
+        word = spelled.get("@", spelled.get("^"))
+        if "X" in values or "Y" in values:
+            self.fail("polar coordinates (@ ^) and X or Y in one block", word)
+        x, y = self.program_position()[:2]
+        if not (math.isfinite(x) and math.isfinite(y)):
+            self.fail("polar coordinates (@ ^) before the X and Y position is known", word)
+        radius, angle = math.hypot(x, y), math.degrees(math.atan2(y, x))
+        if self.incremental:
+            radius += values.get("@", 0.0)
+            angle += values.get("^", 0.0)
+        else:
+            radius = values.get("@", radius)
+            angle = values.get("^", angle)
+        angle = math.radians(angle)
+        return (radius * math.cos(angle) * scale + self.g5x[0] + self.g92[0],
+                radius * math.sin(angle) * scale + self.g5x[1] + self.g92[1])
 
     def move(self, values, spelled, scale, g_codes):
         if self.motion is None:
@@ -878,7 +1398,7 @@ class _Reader:
         if self.inverse_time:
             if "F" not in spelled:
                 self.fail("inverse-time feed (G93) needs F on every G1/G2/G3 block", "F")
-            return 60.0 / float(spelled["F"][1:]) / n_pieces, math.nan
+            return 60.0 / self.block_f / n_pieces, math.nan
         if not math.isfinite(self.feed):
             self.fail("feed move without a feed rate: program F (G94, per minute)",
                       f"G{self.motion}")
@@ -888,40 +1408,36 @@ class _Reader:
             length = math.dist(start[3:], end[3:])  # rotary only: F in degrees per minute
         return 60.0 * length / self.feed / n_pieces, self.feed / 60.0
 
+    def programmed_feed(self, rapid):
+        """F as programmed for a move: mm/min in G94, 1/min in G93, NaN for a rapid."""
+        if rapid:
+            return math.nan
+        return self.block_f if self.inverse_time else self.feed
+
     def add(self, target, rapid, duration, feed, tcp=None):
-        self.ends.append(target)
-        self.rapid.append(rapid)
-        self.duration.append(duration)
-        self.feeds.append(feed)
-        self.lines.append(self.row)
-        self.tcp_moves.append(self.tcp if tcp is None else tcp)
-        self.tolerances.append(self.path_tolerance)
+        tcp = self.tcp if tcp is None else tcp
+        self.programmed.append((0 if rapid else 1, list(target), _NO_CENTRE, 0, 0,
+                                self.inverse_time, self.programmed_feed(rapid), self.row, tcp,
+                                self.n_moves))
+        self.moves.append((list(target), rapid, duration, feed, self.row, tcp,
+                           self.path_tolerance))
         self.prog = list(target)
         self.n_moves += 1
 
-    def seal(self):
-        """Move the single moves collected so far into a chunk (keeps the program order)."""
-        if self.ends:
-            self.chunks.append((np.array(self.ends, dtype=float).reshape(-1, 5),
-                                np.array(self.rapid, dtype=bool),
-                                np.array(self.duration, dtype=float),
-                                np.array(self.feeds, dtype=float),
-                                np.array(self.lines, dtype=np.int64),
-                                np.array(self.tcp_moves, dtype=bool),
-                                np.array(self.tolerances, dtype=float)))
-            self.ends, self.rapid, self.duration, self.feeds = [], [], [], []
-            self.lines, self.tcp_moves, self.tolerances = [], [], []
-
-    def add_many(self, ends, rapid, duration, feed, lines):
-        """Append k moves at once (arrays of k rows; scalars are broadcast)."""
-        self.seal()
+    def add_many(self, ends, rapid, duration, feed, lines, programmed):
+        """Append k moves at once (arrays of k rows; scalars are broadcast), with their
+        programmed moves (the columns of :attr:`programmed`, or one arc's row)."""
         k = ends.shape[0]
-        self.chunks.append((np.asarray(ends, dtype=float),
-                            np.broadcast_to(np.asarray(rapid, dtype=bool), (k,)),
-                            np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
-                            np.broadcast_to(np.asarray(feed, dtype=float), (k,)),
-                            np.broadcast_to(np.asarray(lines, dtype=np.int64), (k,)),
-                            np.full(k, self.tcp), np.full(k, self.path_tolerance)))
+        self.moves.extend((np.asarray(ends, dtype=float),
+                           np.broadcast_to(np.asarray(rapid, dtype=bool), (k,)),
+                           np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
+                           np.broadcast_to(np.asarray(feed, dtype=float), (k,)),
+                           np.broadcast_to(np.asarray(lines, dtype=np.int64), (k,)),
+                           np.full(k, self.tcp), np.full(k, self.path_tolerance)))
+        if isinstance(programmed, tuple) and not isinstance(programmed[0], np.ndarray):
+            self.programmed.append(programmed)
+        else:
+            self.programmed.extend(programmed)
         self.prog = ends[-1].tolist()
         self.n_moves += k
 
@@ -1000,7 +1516,13 @@ class _Reader:
         points[-1] = target
         helix = math.hypot(0.5 * (r0 + r1) * abs(sweep), target[n] - start[n])
         duration, feed = self.timing(start, target, n_chords, spelled, length=helix)
-        self.add_many(points, False, duration, feed, self.row)
+        centre = [math.nan] * 3
+        centre[a], centre[b] = ca, cb
+        rotation = (1 if ccw else -1) * int(turns or 1)
+        plane = {(0, 1, 2): 17, (2, 0, 1): 18, (1, 2, 0): 19}[self.plane]
+        self.add_many(points, False, duration, feed, self.row,
+                      (2, list(target), centre, plane, rotation, self.inverse_time,
+                       self.programmed_feed(False), self.row, self.tcp, self.n_moves))
 
     # ------------------------------------------------------------------ result
     def check_tilt(self, tilt: np.ndarray, lines: np.ndarray) -> None:
@@ -1019,9 +1541,10 @@ class _Reader:
         if self.start is None or not self.n_moves:
             raise ProgramError("no motion: no move after a block that sets all axes "
                                f"({' '.join(self.axes)})", source=self.source)
-        self.seal()
-        ends, rapid, duration, feed, lines, tcp, tolerance = (np.concatenate(parts)
-                                                              for parts in zip(*self.chunks))
+        ends, rapid, duration, feed, lines, tcp, tolerance = self.moves.columns(
+            (float, bool, float, float, np.int64, bool, float))
+        programmed = ProgrammedMoves(*self.programmed.columns(
+            (np.int8, float, float, np.int8, np.int64, bool, float, np.int64, bool, np.int64)))
         q = self.machine_axes(ends, tcp)
         start = self.machine_axes(np.array([self.start]), np.array([self.start_tcp]))[0]
         bad = ~np.isfinite(q).all(axis=1)
@@ -1036,7 +1559,48 @@ class _Reader:
                        source=self.source, tcp=bool(tcp.any() or self.tcp_all),
                        axes=self.axes, notices=tuple(self.notices),
                        skipped=MappingProxyType(dict(self.skipped)),
-                       path_tolerance=tolerance)
+                       path_tolerance=tolerance, programmed=programmed)
+
+
+class _Table:
+    """Columns collected in order, row by row (tuples) or in chunks of arrays."""
+
+    __slots__ = ("rows", "chunks")
+
+    def __init__(self):
+        self.rows, self.chunks = [], []
+
+    def append(self, row: tuple):
+        self.rows.append(row)
+
+    def extend(self, columns: tuple):
+        self.seal()
+        self.chunks.append(columns)
+
+    def seal(self):
+        if self.rows:
+            self.chunks.append(tuple(zip(*self.rows)))
+            self.rows = []
+
+    def columns(self, dtypes):
+        self.seal()
+        return [np.concatenate([np.asarray(chunk[i], dtype=dtype) for chunk in self.chunks])
+                if self.chunks else np.zeros(0, dtype) for i, dtype in enumerate(dtypes)]
+
+
+class _Frame:
+    """One level of calls: the main program, an O-word subroutine or an M98 subprogram."""
+
+    __slots__ = ("kind", "name", "return_pc", "saved", "locals", "start", "left", "repeats",
+                 "iterations", "auto_restore")
+
+    def __init__(self, kind, name, return_pc, *, saved=None, locals=None, start=0, left=0):
+        self.kind, self.name, self.return_pc = kind, name, return_pc
+        self.saved = saved                      # the caller's #1-#30
+        self.locals = {} if locals is None else locals
+        self.start, self.left = start, left     # M98: the label line, calls still to run
+        self.repeats, self.iterations = {}, {}  # per loop (first line): counts
+        self.auto_restore = None                # M73: the state to restore on return
 
 
 def _tilt_travel(kinematics) -> tuple[float, float]:
