@@ -348,8 +348,52 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
                         r"which is not known yet"),
     ("G0 X0\nG28.1\n", r"line 2, word 'G28.1': G28.1 stores the current position, which is "
                        r"not known yet"),
-    ("G0 X0\nM61 Q1 L2\n", r"line 2, word 'L2': unsupported word 'L2' \(L is read with G10\)"),
-    ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycles \(G81\)"),
+    ("G0 X0\nM61 Q1 L2\n", r"line 2, word 'L2': unsupported word 'L2' \(L is read with G10, canned "
+                           r"cycles, M98\)"),
+    ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycle without a feed rate"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 F9\n", r"line 2, word 'G81': G81 needs R \(the retract "
+                                          r"plane\) when the cycle begins"),
+    ("G0 X0 Y0 Z5 A0 C0\nG83 X1 Z-1 R1 F9\n", r"line 2, word 'G83': G83 needs Q \(the peck "
+                                             r"depth\) when the cycle begins"),
+    ("G0 X0 Y0 Z5 A0 C0\nG82 X1 Z-1 R1 F9\n", r"line 2, word 'G82': G82 needs P \(the dwell, "
+                                             r"s\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 R1 F9\n", r"line 2, word 'G81': G81 needs Z \(the bottom\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z2 R1 F9\n", r"line 2, word 'G81': the retract plane R is below "
+                                            r"the bottom Z of the cycle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 L0 F9\n", r"line 2, word 'L0': canned cycle repeats 'L0' "
+                                                r"must be a whole number >= 1"),
+    ("G0 X0 Y0 Z5 A0 C0\nG83 X1 Z-1 R1 Q0 F9\n", r"line 2, word 'Q0': G83 needs a peck depth "
+                                                r"Q > 0"),
+    ("G0 X0 Y0 Z5 A0 C0\nG93 G81 X1 Z-1 R1 F9\n", r"line 2, word 'G81': canned cycles need feed "
+                                                 r"per minute \(G94\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 C5 F9\n", r"line 2, word 'C5': the rotary axes may not "
+                                                r"move in a canned cycle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG43.4 H1\nG81 X1 Z-1 R1 F9\n", r"line 3, word 'G81': canned cycles "
+                                                       r"under G43.4/G43.5"),
+    ("G0 X0 Y0 Z5 A0 C0\nG84 X1 Z-1 R1 F9\n", r"line 2, word 'G84': tapping cycles \(G84\) follow "
+                                             r"the spindle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG88 X1 Z-1 R1 P1 F9\n", r"line 2, word 'G88': G88 \(boring with a "
+                                                r"manual retract"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 F9\nG80\nX2\n", r"line 4, word 'X2': axis words after "
+                                                      r"G80 without a motion code"),
+    ("G0 X0 Y0 Z5 A0 C0\nG18 G81 Z0 Y-1 R1 @2 F9\n", r"word '@2': polar coordinates "
+                                                  r"\(@ \^\) in a canned cycle need the XY "
+                                                  r"plane"),
+    ("G0 X0 Y0 Z5 A0 C0\nG1 X1 @2 F9\n", r"line 2, word '@2': polar coordinates \(@ \^\) and "
+                                        r"X or Y in one block"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0 P1\n", r"line 2, word 'P1': G68.2 P1: only "
+                                                       r"the Euler-angle form"),
+    ("G0 X0 Y0 Z5 A0 C0\nG53.1\n", r"line 2, word 'G53.1': G53.1 needs a tilted working plane"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nG55\n", r"line 3, word 'G55': G55 with "
+                                                          r"G68.2 active: cancel it with G69"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nG1 A5 F9\n", r"line 3, word 'A5': rotary "
+                                                               r"axis word 'A5' with G68.2"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nM428\n", r"line 3, word 'M428': a TCP "
+                                                           r"switch with G68.2 active"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0 G1\n", r"line 2, word 'G68.2': G68.2, G53.1 "
+                                                       r"and G69 take a block of their own"),
+    ("G0 X1\nG68.2 X0 Y0 Z0 I0 J10 K0\n", r"line 2, word 'G68.2': G68.2 before the position "
+                                          r"of every axis is known"),
     ("G0 X0\nG41 D1\n", r"line 2, word 'G41': cutter radius compensation"),
     ("G0 X0\nG5.1 X1\n", r"line 2, word 'G5.1': unsupported G code G5.1"),
     ("G0 X0\nG1 B45. F100\n", r"line 2, word 'B45.': unsupported word 'B45.' \(axes are "
@@ -406,7 +450,7 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 X1\n", r"line 1, word 'X1': word X appears twice in the block"),
     ("G0 X0\nG1 X1 F100 F200\n", r"line 2, word 'F200': word F appears twice in the block"),
     ("G0 X0\nG1 X1 F100\nG1 Q5 X2\n", r"line 3, word 'Q5': unsupported word 'Q5' \(Q is read "
-                                      r"with G64, M61, M66-M68\)"),
+                                      r"with G64, G73/G83, M61, M66-M68\)"),
     ("G0 X0\nG1 X1 F100 \u00e9\n", r"line 2: cannot parse '\u00c9'"),
     ("G0 X0\nG4 G1 X1\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
     ("G0 X0\nG4\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
@@ -830,3 +874,102 @@ def test_fanuc_subprogram_repeat_forms(machine, tmp_path):
     program = read(tmp_path, machine, text)
     np.testing.assert_allclose(program.q[:, 0], [1, 2, 3, 4])   # 2 + 0 + 2 calls
     np.testing.assert_array_equal(program.line, [9, 9, 9, 9])
+
+
+# --------------------------------------------------------------------------- canned cycles
+
+
+def test_canned_cycles_expand_as_linuxcnc(xyzac):
+    # the moves LinuxCNC 2.9's rs274 prints for tests/toolpath/data/cycles.ngc (its lines)
+    program = read_program(DATA / "cycles.ngc", xyzac)
+    pm = program.programmed
+
+    def moves(line):
+        k = pm.line == line
+        return [("rapid" if kind == 0 else "feed", [round(float(v), 9) + 0.0 for v in e[:3]])
+                for kind, e in zip(pm.kind[k], pm.end[k])]
+
+    assert moves(6) == [("rapid", [1, 1, 20]), ("rapid", [1, 1, 2]), ("feed", [1, 1, -5]),
+                        ("rapid", [1, 1, 2])]                       # G99 by default: to R
+    assert moves(9) == [("rapid", [3, 3, 20]), ("rapid", [3, 3, 2]), ("feed", [3, 3, -5]),
+                        ("rapid", [3, 3, 20])]                      # G98: the start height
+    assert [e for _, e in moves(13)] == [[9, 3, 20], [9, 3, 2], [9, 3, -5], [9, 3, 2],
+                                         [14, 3, 2], [14, 3, -5], [14, 3, 2],
+                                         [19, 3, 2], [19, 3, -5], [19, 3, 2]]   # G91 L3
+    assert moves(17) == [("rapid", [10, 10, 20]), ("rapid", [10, 10, 1]),
+                         ("feed", [10, 10, -3]), ("rapid", [10, 10, 1]),
+                         ("rapid", [10, 10, -2.746]), ("feed", [10, 10, -7]),
+                         ("rapid", [10, 10, 1]), ("rapid", [10, 10, -6.746]),
+                         ("feed", [10, 10, -10]), ("rapid", [10, 10, 20])]   # G83 pecks
+    assert [e[2] for _, e in moves(18)] == [20, 1, -3, -2.746, -7, -6.746, -10, 1]   # G73
+    assert moves(20)[-2:] == [("feed", [13, 10, 1]), ("rapid", [13, 10, 20])]   # G85 out
+    assert moves(22)[-1] == ("feed", [15, 10, 20])                  # G89 feeds out
+    assert [e for _, e in moves(24)] == [[20, 20, 20], [20, 20, 2], [21, 20, 2], [21, 20, -5],
+                                         [20, 20, -5], [20, 20, -3], [20, 20, -5],
+                                         [21, 20, -5], [21, 20, 20], [20, 20, 20]]   # G87
+    assert moves(28) == [("rapid", [20, 20, 12]), ("rapid", [1, 2, 12]), ("feed", [1, 2, -1]),
+                         ("rapid", [1, 2, 12])]                     # up to R first
+    dwells = [(s.line, s.seconds) for s in program.stops if s.kind == "dwell"]
+    assert dwells == [(19, 0.5), (21, 0.2), (22, 0.3)]
+    polar = [e for line, e in zip(pm.line, pm.end) if line in (37, 38, 39) and e[2] == -2]
+    np.testing.assert_allclose([p[:2] for p in polar],
+                               [[10, 0], [-5, 10 * math.sin(math.radians(120))],
+                                [-5, -10 * math.sin(math.radians(120))]], atol=1e-12)
+    y_axis = moves(44)                                              # G18: drilling along Y
+    assert y_axis == [("rapid", [1, 5, 0]), ("rapid", [1, -1, 0]), ("feed", [1, -3, 0]),
+                      ("rapid", [1, -1, 0])]
+
+
+def test_cycle_words_carry_over_and_g80_ends_them(machine, tmp_path):
+    text = ("G0 X0 Y0 Z10 A0 C0\nG83 X1 Z-1.5 R1 Q1 F60\nX2\nG80\nG1 X3 F60\n")
+    program = read(tmp_path, machine, text)
+    pm = program.programmed
+    again = pm.line == 3
+    # R, Z and Q carry over: pecks of 1 mm from R, back to R, down to 0.254 above the last
+    np.testing.assert_allclose(pm.end[again][:, :3],
+                               [[2, 0, 1], [2, 0, 0], [2, 0, 1], [2, 0, 0.254], [2, 0, -1],
+                                [2, 0, 1], [2, 0, -0.746], [2, 0, -1.5], [2, 0, 1]],
+                               atol=1e-12)
+    np.testing.assert_allclose(program.q[-1, :3], [3, 0, 1])
+
+
+# --------------------------------------------------------------------------- G68.2
+
+
+def test_tilted_working_plane_g68_2_g53_1(xyzac, tmp_path):
+    # Fanuc's G68.2 with Euler angles I J K (about Z, the new X, the new Z): here 90, 30, 0,
+    # so the plane's X is the workpiece's +Y and its Z leans 30 deg towards +X
+    text = ("G21 G90 G94\nG0 X0 Y0 Z40 A0 C0\nG68.2 X10 Y5 Z0 I90 J30 K0\nG53.1\n"
+            "G0 X0 Y0 Z20\nG1 Z0 F300\nG1 X5\nG3 X5 Y5 I0 J2.5\nG81 X0 Y0 Z-4 R2\nG80\nG69\n"
+            "G0 X0 Y0 Z60\n")
+    program = read(tmp_path, xyzac, text)
+    kin = xyzac.kinematics
+    c30, s30 = math.cos(math.radians(30)), math.sin(math.radians(30))
+    x_axis, z_axis = np.array([0.0, 1.0, 0.0]), np.array([s30, 0.0, c30])
+    y_axis = np.cross(z_axis, x_axis)
+    origin = np.array([10.0, 5.0, 0.0])
+    tips, orientations = kin.forward(program.q)
+    # G53.1: the rotary axes only, then the tool along the plane's Z for every move after
+    np.testing.assert_allclose(program.q[0, :3], program.start[:3], atol=1e-12)
+    assert not program.tcp_move[0] and program.tcp_move[1:-1].all()
+    np.testing.assert_allclose(orientations[:-1], np.tile(z_axis, (len(tips) - 1, 1)),
+                               atol=1e-12)
+    pm = program.programmed
+
+    def at(line):
+        return tips[pm.first[pm.line == line][-1] + (pm.line == line).sum() - 1]
+
+    np.testing.assert_allclose(tips[1], origin + 20 * z_axis, atol=1e-9)
+    np.testing.assert_allclose(at(7), origin + 5 * x_axis, atol=1e-9)
+    # the arc is a circle in the tilted plane: centre origin + 5 x + 2.5 y, radius 2.5
+    arc = tips[pm.first[pm.line == 8][0]:pm.first[pm.line == 9][0]]
+    centre = origin + 5 * x_axis + 2.5 * y_axis
+    np.testing.assert_allclose(np.linalg.norm(arc - centre, axis=1), 2.5, atol=1e-9)
+    np.testing.assert_allclose((arc - origin) @ z_axis, 0.0, atol=1e-9)
+    np.testing.assert_allclose(pm.centre[pm.line == 8][0], centre, atol=1e-12)
+    # the cycle drills along the plane's Z
+    bottom = tips[pm.first[pm.line == 9][0] + 2]
+    np.testing.assert_allclose(bottom, origin - 4 * z_axis, atol=1e-9)
+    # G69: machine axes again
+    assert not program.tcp_move[-1]
+    np.testing.assert_allclose(program.q[-1, :3], [0, 0, 60], atol=1e-12)

@@ -46,11 +46,18 @@ What is read, block by block with the usual modal state:
   are the tool length, not applied), G49, G61, G64, G80; any other M code is kept too, with a
   one-line notice; a line with parameters keeps its values. G64 P (path tolerance) and
   G61/G61.1 (exact path: 0) are also kept per move for the timing.
+- canned cycles G73, G81-G83, G85-G87, G89 expanded into moves as LinuxCNC 2.9 does
+  (:mod:`._cycles`): G98/G99 retract (G99, LinuxCNC's default, without either), R, Q pecks,
+  P dwells, L repeats, G91 increments, polar holes, sticky words, G80; in any plane;
+- Fanuc's tilted working plane ``G68.2 X Y Z I J K`` (Euler angles about Z, X, Z), G53.1
+  (the rotary axes turn the tool onto the plane's Z, in joint space) and G69: the program's
+  coordinates are the plane's, its moves tool tip positions (as TCP moves);
 - :attr:`Program.programmed`: the moves as programmed (straight moves and whole arcs with
   their centres, feeds as given), as LinuxCNC's canonical interface receives them.
 
 Everything else -- subroutines in other files, Fanuc macros (G65, IF/GOTO/WHILE-DO),
-G10 L1/L10/L11 (tool tables), cutter compensation, canned cycles, G95, HAL pins
+G10 L1/L10/L11 (tool tables), cutter compensation, spindle-synchronized motion (tapping
+G74/G84, G33, G76), G88 (a manual retract), G68 rotation, G68.2 P1-P3, G95, HAL pins
 (``#<_hal[...]>``) -- is one :class:`~precontour.errors.ProgramError` naming the file, line
 and word.
 """
@@ -69,6 +76,7 @@ import pyarrow as pa
 from ..errors import InputError, ProgramError
 from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
 from ._common import INCH, ReadReport, finish, read_text
+from ._cycles import PECK_CLEARANCE_INCH, cycle_moves
 from ._ngc import (MAX_PARAMETER, NgcError, OWord, StructureError, compile_line, format_number,
                    needs_macro_reader, scan_structure)
 from .program import Program, ProgrammedMoves, Stop
@@ -90,7 +98,12 @@ MAX_ARC_CHORDS = 1_000_000
 AXIS_WORDS = ("X", "Y", "Z", "A", "C")
 
 # G codes in tenths (G43.4 -> 434).
-_MOTION = {0: 0, 10: 1, 20: 2, 30: 3}
+_MOTION = {0: 0, 10: 1, 20: 2, 30: 3, 730: 73, 810: 81, 820: 82, 830: 83, 850: 85, 860: 86,
+           870: 87, 890: 89}
+#: The canned cycles read (their motion mode numbers) and the words each reads.
+_CYCLES = frozenset([73, 81, 82, 83, 85, 86, 87, 89])
+_CYCLE_WORDS = {73: "RLQ", 81: "RL", 82: "RLP", 83: "RLQ", 85: "RL", 86: "RLP",
+                87: "RLIJK", 89: "RLP"}
 _PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
 #: G codes accepted and kept for an output program (they do not change the axis commands).
 PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 431, 432, 490, 610, 611, 640, 800])
@@ -102,13 +115,16 @@ _WORK_OFFSET_G = (540, 550, 560, 570, 580, 590, 591, 592, 593, 541)
 _NON_MODAL = (40, 100, 280, 281, 300, 301, 530, 920, 921, 922, 923)
 #: Non-modal codes that read the block's axis words themselves.
 _AXIS_WORD_CODES = frozenset([100, 280, 300, 920])
-_MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940])
+#: Fanuc's tilted working plane: G68.2 (define), G53.1 (tool along its Z), G69 (cancel).
+_TILT_G = frozenset([682, 531, 690])
+_MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940, 980, 990])
 _MODAL_GROUPS = (frozenset(_MOTION), frozenset(_PLANES), frozenset([200, 210]),
+                 frozenset([980, 990]),
                  frozenset([900, 910]), frozenset([901, 911]), frozenset([930, 940]),
                  frozenset([430, 431, 434, 435, 490]), frozenset(_WORK_OFFSET_G),
-                 frozenset(_NON_MODAL), frozenset([610, 611, 640]))
+                 frozenset(_NON_MODAL), frozenset([610, 611, 640]), frozenset([682, 690]))
 _KNOWN_G = (frozenset(_MOTION) | PASSTHROUGH_G | _MODE_G | frozenset(_WORK_OFFSET_G)
-            | frozenset(_NON_MODAL))
+            | frozenset(_NON_MODAL) | _TILT_G)
 _UNSUPPORTED_G = {
     950: "feed per revolution (G95) is not supported; use G94 or G93",
     410: "cutter radius compensation (G41) is not supported; post-process with the tool "
@@ -116,7 +132,13 @@ _UNSUPPORTED_G = {
     420: "cutter radius compensation (G42) is not supported; post-process with the tool "
          "radius applied",
     650: "macro calls (G65) are not supported",
-    682: "tilted working plane (G68.2) is not supported",
+    740: "tapping cycles (G74) follow the spindle (synchronized motion): not supported",
+    840: "tapping cycles (G84) follow the spindle (synchronized motion): not supported",
+    841: "rigid tapping (G84.1) follows the spindle (synchronized motion): not supported",
+    880: "G88 (boring with a manual retract: the operator moves the axes) is not supported",
+    760: "threading cycles (G76) follow the spindle (synchronized motion): not supported",
+    330: "spindle-synchronized motion (G33) is not supported",
+    331: "rigid tapping (G33.1) follows the spindle (synchronized motion): not supported",
     680: "coordinate rotation (G68) is not supported",
 }
 _STOP_M = {0: "program stop", 1: "optional stop", 6: "tool change", 2: "end", 30: "end"}
@@ -243,6 +265,14 @@ class _Reader:
         self.jump = None             # the next line after M98/M99
         self.value = self.value_returned = 0.0
         self.saved_state = None      # M70 / M73
+        # canned cycles: G98 (back to the height before the cycles) or G99 (to R, LinuxCNC's
+        # default), the height the cycles began at, the sticky words of the last cycle
+        self.retract_initial = False
+        self.cycle_start = None
+        self.tilt = None             # G68.2: (origin, rotation) of the plane's frame
+        self.tilt_offsets = None
+        self.cycle_words = {}
+        self.cancelled = False
         self.start = None
         self.start_line = 0
         self.start_tcp = tcp
@@ -392,6 +422,8 @@ class _Reader:
         if (f_word <= 0).any():
             return False
         given = ~np.isnan(words)
+        if self.tilt is not None and given[:, 3:].any():
+            return False    # rotary words under G68.2: the word-by-word path says why
         prog = np.array(self.prog, dtype=float)
         if self.incremental:
             target = prog + np.cumsum(np.where(given, words, 0.0), axis=0)
@@ -877,8 +909,6 @@ class _Reader:
             if code in _UNSUPPORTED_G:
                 self.fail(_UNSUPPORTED_G[code], word)
             if code not in _KNOWN_G:
-                if 730 <= code <= 890 and code != 800:
-                    self.fail(f"canned cycles ({word}) are not supported", word)
                 self.fail(f"unsupported G code {_g_name(code)}", word)
             for group_index, group in enumerate(_MODAL_GROUPS):
                 if code in group:
@@ -920,8 +950,10 @@ class _Reader:
                           f"{' '.join(self.axes)})", spelled[letter])
         if 541 in codes and "P" not in spelled:
             self.fail("G54.1 needs the number of its work offset, P1 ... P300", g_word[541])
-        if "L" in spelled and not (100 in codes or "L" in m_words):
-            self.fail(f"unsupported word {spelled['L']!r} (L is read with G10)", spelled["L"])
+        if "L" in spelled and not (100 in codes or "L" in m_words or self.motion in _CYCLES
+                                   or any(_MOTION.get(c) in _CYCLES for c in codes)):
+            self.fail(f"unsupported word {spelled['L']!r} (L is read with G10, canned cycles, "
+                      "M98)", spelled["L"])
         if "E" in spelled and "E" not in m_words:
             self.fail(f"unsupported word {spelled['E']!r} (E is read with M66-M68)",
                       spelled["E"])
@@ -987,7 +1019,17 @@ class _Reader:
             self.tcp_sources.add("TRAORI")
         if trafoof:
             self.tcp_sources.discard("TRAORI")
+        if self.tilt is not None and (m_switch or traori or trafoof or 434 in codes
+                                      or 435 in codes):
+            self.fail("a TCP switch with G68.2 active: cancel it with G69 first",
+                      next((w for c, w in m_codes if c // 10 in m_switch), None)
+                      or g_word.get(434) or g_word.get(435))
         self.set_tcp(bool(self.tcp_sources))
+        if self.tilt is not None and (non_modal in (100, 280, 300, 530, 920, 921, 922, 923)
+                                      or set(_WORK_OFFSET_G) & codes):
+            code = non_modal if non_modal in g_word else min(set(_WORK_OFFSET_G) & codes)
+            self.fail(f"{_g_name(code)} with G68.2 active: cancel it with G69 first",
+                      g_word[code])
         for code in _WORK_OFFSET_G:
             if code in codes:
                 self.select_work_offset(code, values, spelled)
@@ -1003,33 +1045,63 @@ class _Reader:
             self.arc_absolute = True
         if 911 in codes:
             self.arc_absolute = False
+        previous_motion = self.motion
+        if 800 in codes:
+            self.motion = None            # G80: no motion mode (the cycles end)
+            self.cycle_start = None
+            self.cancelled = True
         for code in codes:
             if code in _MOTION:
                 motion_here = _MOTION[code]
         if motion_here is not None:
             self.motion = motion_here
+            if motion_here not in _CYCLES:
+                self.cycle_start = None   # the next cycle's G98 height is taken anew
+        if 980 in codes:
+            self.retract_initial = True
+        if 990 in codes:
+            self.retract_initial = False
 
         # word checks that depend on the codes
         arc_words = [spelled[k] for k in ("IJK" if 100 in codes else "IJKR") if k in spelled]
+        if codes & _TILT_G:
+            if any(code in _MOTION for code in codes) or non_modal is not None:
+                self.fail("G68.2, G53.1 and G69 take a block of their own",
+                          g_word[min(codes & _TILT_G)])
+            self.tilted_plane(codes, values, spelled, scale, g_word)
+            moves_axes = False     # G68.2's X Y Z are its origin
+            arc_words = []
+        elif self.tilt is not None and moves_axes:
+            rotary = [spelled[a] for a in self.axes[3:] if a in spelled]
+            if rotary:
+                self.fail(f"rotary axis word {rotary[0]!r} with G68.2 active: G53.1 turns the "
+                          "rotary axes to the plane", rotary[0])
         if codes & _TOOL_LENGTH_WORDS:
             if any(code in _MOTION for code in codes) and moves_axes:
                 word = g_word[min(codes & _TOOL_LENGTH_WORDS)]
                 self.fail(f"{word} and a motion both use the axis words of the block", word)
             moves_axes = False    # the words are the tool length offset (not applied)
         centre_only = not moves_axes and any(k in spelled for k in "IJK")
+        is_cycle = (self.motion in _CYCLES and (moves_axes or motion_here in _CYCLES)
+                    and non_modal is None)
+        cycle_words = _CYCLE_WORDS[self.motion] if is_cycle else ""
         is_arc = (self.motion in (2, 3) and (moves_axes or motion_here in (2, 3) or centre_only)
                   and (non_modal is None or dwell and motion_here is not None))
         if dwell and is_arc and "P" in spelled:
             self.fail("G4 P and an arc's turns P in one block", spelled["P"])
+        arc_words = [w for w in arc_words if w[0] not in cycle_words]
         if arc_words and not is_arc:
-            self.fail(f"word {arc_words[0]!r} is read only with G2/G3", arc_words[0])
-        p_readers = dwell or 640 in codes or is_arc or 541 in codes or 100 in codes
+            self.fail(f"word {arc_words[0]!r} is read only with G2/G3"
+                      + (" and G87" if arc_words[0][0] in "IJK" else " and canned cycles"),
+                      arc_words[0])
+        p_readers = (dwell or 640 in codes or is_arc or 541 in codes or 100 in codes
+                     or "P" in cycle_words or 682 in codes)
         if "P" in spelled and not (p_readers or "P" in m_words):
             self.fail(f"unsupported word {spelled['P']!r} (P is read with G4, G10, G54.1, "
-                      "G64, G2/G3, M62-M66)", spelled["P"])
-        if "Q" in spelled and not (640 in codes or "Q" in m_words):
-            self.fail(f"unsupported word {spelled['Q']!r} (Q is read with G64, M61, M66-M68)",
-                      spelled["Q"])
+                      "G64, G2/G3, G82/G86/G89, M62-M66)", spelled["P"])
+        if "Q" in spelled and not (640 in codes or "Q" in m_words or "Q" in cycle_words):
+            self.fail(f"unsupported word {spelled['Q']!r} (Q is read with G64, G73/G83, M61, "
+                      "M66-M68)", spelled["Q"])
 
         if dwell:
             # RS274/NGC: the dwell before the block's motion; with a motion code the axis
@@ -1064,6 +1136,8 @@ class _Reader:
                           g_word[530])
             if moves_axes:
                 self.machine_move(self.motion == 0, values, spelled, scale)
+        elif is_cycle:
+            self.cycle(values, spelled, scale, previous_motion, g_word)
         elif moves_axes or is_arc and centre_only:
             # (G2/G3 with a centre and no axis words: a full circle, as in LinuxCNC)
             self.move(values, spelled, scale, g_codes)
@@ -1343,10 +1417,202 @@ class _Reader:
         return (radius * math.cos(angle) * scale + self.g5x[0] + self.g92[0],
                 radius * math.sin(angle) * scale + self.g5x[1] + self.g92[1])
 
+    def tilted_plane(self, codes, values, spelled, scale, g_word):
+        """Fanuc's tilted working plane. ``G68.2 X Y Z I J K``: the program's coordinates are
+        those of a frame with its origin at X Y Z (work coordinates) turned by the Euler
+        angles I, J, K (degrees; about Z, then the new X, then the new Z); its moves are tool
+        tip positions (as in TCP mode) with the rotary axes where they stand. ``G53.1``: the
+        rotary axes turn (a rapid in joint space) until the tool is along the frame's +Z
+        (C on the branch nearest where it is). ``G69``: back to the work coordinates."""
+        if 682 in codes:
+            word = g_word[682]
+            if self.tilt is not None:
+                self.fail("G68.2 again before G69 (a tilted plane on a tilted plane is not "
+                          "supported)", word)
+            if values.get("P", 0.0) != 0.0:
+                self.fail(f"G68.2 {spelled['P']}: only the Euler-angle form (P0: I J K about "
+                          "Z, X, Z) is supported", spelled["P"])
+            if self.tcp_sources:
+                self.fail("G68.2 in TCP mode is not supported", word)
+            if not all(math.isfinite(v) for v in self.prog):
+                self.fail("G68.2 before the position of every axis is known", word)
+            extra = [spelled[a] for a in self.axes[3:] if a in spelled]
+            if extra:
+                self.fail(f"axis word {extra[0]!r} in a G68.2 block", extra[0])
+            origin = np.array([values.get(a, 0.0) * scale + o + g for a, o, g in
+                               zip(self.axes[:3], self.g5x, self.g92)])
+            rotation = _euler_zxz(values.get("I", 0.0), values.get("J", 0.0),
+                                  values.get("K", 0.0))
+            self.tcp_sources.add("G68.2")
+            self.set_tcp(True)                       # the position as a tool tip
+            tip = np.array(self.prog[:3])
+            self.prog = [*map(float, (tip - origin) @ rotation), *self.prog[3:]]
+            self.tilt = (origin, rotation)
+            self.tilt_offsets = (self.g5x, self.g92)
+            self.g5x, self.g92 = list(_ZERO), list(_ZERO)   # in the frame's origin now
+        if 531 in codes:
+            word = g_word[531]
+            if self.tilt is None:
+                self.fail("G53.1 needs a tilted working plane (G68.2)", word)
+            origin, rotation = self.tilt
+            tip = origin + rotation @ np.array(self.prog[:3])
+            current = np.radians(self.prog[3:])
+            q = self.kinematics.inverse(tip[None, :], rotation[None, :, 2],
+                                        c_near=np.array([current[1]]))[0]
+            linear = self.kinematics.linear_axes(tip[None, :], current[None, :])[0]
+            target = [*map(float, linear), *map(math.degrees, q[3:])]
+            if self.start is not None:
+                self.add(target, True, math.nan, math.nan, tcp=False)
+            new_tip, _ = self.kinematics.forward(np.array([*target[:3],
+                                                           *np.radians(target[3:])]))
+            self.prog = [*map(float, (np.asarray(new_tip).reshape(3) - origin) @ rotation),
+                         *target[3:]]
+        if 690 in codes and self.tilt is not None:
+            origin, rotation = self.tilt
+            tip = origin + rotation @ np.array(self.prog[:3])
+            self.prog = [*map(float, tip), *self.prog[3:]]
+            self.g5x, self.g92 = self.tilt_offsets
+            self.tilt = None
+            self.tcp_sources.discard("G68.2")
+            self.set_tcp(bool(self.tcp_sources))
+
+    def cycle(self, values, spelled, scale, previous, g_word):
+        """A canned-cycle block (G73, G81-G83, G85-G87, G89), expanded into moves as LinuxCNC
+        does (:mod:`._cycles`): the hole at the block's X Y (G91: every repeat L moves by
+        them), R the retract plane, the bottom on the plane's normal axis; R, the bottom, P,
+        Q, I J K carry over while the same cycle continues."""
+        code = self.motion
+        word = g_word.get(next((c for c in g_word if _MOTION.get(c) == code), None),
+                          f"G{code}")
+        a, b, n = self.plane
+        axis, first, second = self.axes[n], self.axes[a], self.axes[b]
+        if self.inverse_time:
+            self.fail("canned cycles need feed per minute (G94), not inverse time (G93)", word)
+        if not math.isfinite(self.feed):
+            self.fail("canned cycle without a feed rate: program F (G94, per minute)", word)
+        if "G43.4" in self.tcp_sources:
+            self.fail("canned cycles under G43.4/G43.5 (tool centre point) are not supported",
+                      word)
+        rotary = [spelled[a] for a in self.axes[3:] if a in spelled]
+        if rotary:
+            self.fail(f"the rotary axes may not move in a canned cycle ({rotary[0]})", rotary[0])
+        polar = "@" in values or "^" in values
+        if polar and self.plane != _PLANES[170]:
+            self.fail("polar coordinates (@ ^) in a canned cycle need the XY plane (G17)",
+                      spelled.get("@", spelled.get("^")))
+        same = previous == code
+        sticky = self.cycle_words if same else {}
+        given = dict(sticky)
+        for letter, key in (("R", "R"), (axis, "Z"), ("P", "P"), ("Q", "Q"), ("I", "I"),
+                            ("J", "J"), ("K", "K")):
+            if letter in values:
+                given[key] = values[letter]
+        needs = {"R": "R (the retract plane)", "Z": f"{axis} (the bottom)"}
+        if code in (82, 86, 89):
+            needs["P"] = "P (the dwell, s)"
+        if code in (73, 83):
+            needs["Q"] = "Q (the peck depth)"
+        if code == 87:
+            needs.update(I="I", J="J", K="K")
+        for key, what in needs.items():
+            if key not in given:
+                self.fail(f"G{code} needs {what} when the cycle begins", word)
+        repeats = values.get("L", 1.0)
+        if repeats != int(repeats) or repeats < 1:
+            self.fail(f"canned cycle repeats {spelled.get('L')!r} must be a whole number >= 1 "
+                      "(LinuxCNC refuses L0)", spelled.get("L", word))
+        if code in (73, 83) and not given["Q"] > 0:
+            self.fail(f"G{code} needs a peck depth Q > 0", spelled.get("Q", word))
+        if code in (82, 86, 89) and not given["P"] >= 0:
+            self.fail(f"G{code} needs a dwell P >= 0", spelled.get("P", word))
+        current = list(self.prog)
+        unknown = [self.axes[i] for i in (a, b, n) if not math.isfinite(current[i])]
+        if unknown:
+            self.fail(f"canned cycle before the position of axis {unknown[0]} is known", word)
+        offset = [o + g for o, g in zip(self.g5x, self.g92)]
+        height = current[n]
+        if self.cycle_start is None:
+            self.cycle_start = height
+        initial = self.cycle_start
+        if self.incremental:
+            r = given["R"] * scale + initial
+            bottom = r + given["Z"] * scale
+        else:
+            r = given["R"] * scale + offset[n]
+            bottom = given["Z"] * scale + offset[n]
+        if r < bottom:
+            self.fail(f"the retract plane R is below the bottom {axis} of the cycle", word)
+        holes = self.cycle_holes(values, spelled, scale, int(repeats), first, second, a, b,
+                                 offset)
+        if initial < r:
+            # the preliminary move: up to R where the cycles begin below it
+            up = list(current)
+            up[n] = r
+            self.go(up, True, spelled)
+            current, initial, height = up, r, r
+        clear = initial if self.retract_initial else r
+        back_bore = None
+        if code == 87:
+            top = given["K"] * scale + (bottom if self.incremental else offset[n])
+            back_bore = (given["I"] * scale, given["J"] * scale, top)
+        peck_clearance = PECK_CLEARANCE_INCH * INCH
+        moves = cycle_moves(code, self.plane, current, holes, r=r, bottom=bottom, clear=clear,
+                            current=height, dwell=given.get("P", 0.0),
+                            peck=given.get("Q", 0.0) * scale, peck_clearance=peck_clearance,
+                            back_bore=back_bore)
+        for kind, point in moves:
+            if kind == "dwell":
+                self.stops.append(Stop(self.n_moves, self.row, "dwell", float(point)))
+                continue
+            # the other axes where they are (a first feed move may just have made them known)
+            target = list(self.prog)
+            for i in (a, b, n):
+                target[i] = point[i]
+            self.go(target, kind == "rapid", spelled)
+        self.cycle_words = {k: v for k, v in given.items() if k in "RZPQIJK"}
+
+    def cycle_holes(self, values, spelled, scale, repeats, first, second, a, b, offset):
+        """The hole of each repeat in the plane (absolute): G90 at the words (or where the
+        axes are), G91 the words added once per repeat; polar @ ^ about the work origin."""
+        x, y = self.prog[a], self.prog[b]
+        if "@" in values or "^" in values:
+            # in program coordinates (the work origin), as LinuxCNC's CYCLE_MACRO
+            px, py = (x - offset[a]) / scale, (y - offset[b]) / scale
+            holes = []
+            if not self.incremental:
+                radius = values.get("@", math.hypot(px, py))
+                theta = math.radians(values["^"]) if "^" in values else math.atan2(py, px)
+                px, py = radius * math.cos(theta), radius * math.sin(theta)
+                holes = [(px, py)] * repeats
+            else:
+                for _ in range(repeats):
+                    if px == 0.0 and py == 0.0:
+                        self.fail("incremental polar coordinates at the origin have no "
+                                  "direction", spelled.get("@", spelled.get("^")))
+                    if "@" in values:
+                        radius = math.hypot(px, py) + values["@"]
+                        theta = math.atan2(py, px)
+                        px, py = radius * math.cos(theta), radius * math.sin(theta)
+                    if "^" in values:
+                        radius = math.hypot(px, py)
+                        theta = math.atan2(py, px) + math.radians(values["^"])
+                        px, py = radius * math.cos(theta), radius * math.sin(theta)
+                    holes.append((px, py))
+            return [(hx * scale + offset[a], hy * scale + offset[b]) for hx, hy in holes]
+        if not self.incremental:
+            x = values[first] * scale + offset[a] if first in values else x
+            y = values[second] * scale + offset[b] if second in values else y
+            return [(x, y)] * repeats
+        dx = values.get(first, 0.0) * scale
+        dy = values.get(second, 0.0) * scale
+        return [(x + dx * (k + 1), y + dy * (k + 1)) for k in range(repeats)]
+
     def move(self, values, spelled, scale, g_codes):
         if self.motion is None:
-            self.fail("axis words before any motion code (G0, G1, G2, G3)",
-                      next(spelled[a] for a in self.axes if a in spelled))
+            word = next((spelled[a] for a in self.axes if a in spelled), None)
+            if self.cancelled:
+                self.fail("axis words after G80 without a motion code (G0, G1, G2, G3)", word)
+            self.fail("axis words before any motion code (G0, G1, G2, G3)", word)
         target = self.target(values, spelled, scale)
         arc = self.motion in (2, 3)
         if self.start is None:
@@ -1414,13 +1680,23 @@ class _Reader:
             return math.nan
         return self.block_f if self.inverse_time else self.feed
 
+    def to_workpiece(self, points):
+        """Under G68.2: points of the tilted plane's frame -> the workpiece frame (the tool
+        tip, as a TCP move); otherwise the points themselves."""
+        if self.tilt is None:
+            return points
+        origin, rotation = self.tilt
+        points = np.array(points, dtype=float)
+        points[..., :3] = origin + points[..., :3] @ rotation.T
+        return points
+
     def add(self, target, rapid, duration, feed, tcp=None):
         tcp = self.tcp if tcp is None else tcp
-        self.programmed.append((0 if rapid else 1, list(target), _NO_CENTRE, 0, 0,
+        end = self.to_workpiece(target).tolist() if tcp and self.tilt else list(target)
+        self.programmed.append((0 if rapid else 1, end, _NO_CENTRE, 0, 0,
                                 self.inverse_time, self.programmed_feed(rapid), self.row, tcp,
                                 self.n_moves))
-        self.moves.append((list(target), rapid, duration, feed, self.row, tcp,
-                           self.path_tolerance))
+        self.moves.append((end, rapid, duration, feed, self.row, tcp, self.path_tolerance))
         self.prog = list(target)
         self.n_moves += 1
 
@@ -1428,6 +1704,16 @@ class _Reader:
         """Append k moves at once (arrays of k rows; scalars are broadcast), with their
         programmed moves (the columns of :attr:`programmed`, or one arc's row)."""
         k = ends.shape[0]
+        self.prog = ends[-1].tolist()
+        if self.tilt is not None:
+            ends = self.to_workpiece(ends)
+            if isinstance(programmed, tuple) and not isinstance(programmed[0], np.ndarray):
+                # an arc: its end, and its centre as a point (all three axes) of the plane
+                kind, end, centre, *rest = programmed
+                programmed = (kind, self.to_workpiece(end).tolist(),
+                              self.to_workpiece(centre).tolist(), *rest)
+            else:
+                programmed = (programmed[0], ends, *programmed[2:])
         self.moves.extend((np.asarray(ends, dtype=float),
                            np.broadcast_to(np.asarray(rapid, dtype=bool), (k,)),
                            np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
@@ -1438,7 +1724,6 @@ class _Reader:
             self.programmed.append(programmed)
         else:
             self.programmed.extend(programmed)
-        self.prog = ends[-1].tolist()
         self.n_moves += k
 
     def arc(self, target, values, spelled, scale):
@@ -1518,6 +1803,8 @@ class _Reader:
         duration, feed = self.timing(start, target, n_chords, spelled, length=helix)
         centre = [math.nan] * 3
         centre[a], centre[b] = ca, cb
+        if self.tilt is not None:
+            centre[n] = start[n]   # a point of the tilted plane, given in all three axes
         rotation = (1 if ccw else -1) * int(turns or 1)
         plane = {(0, 1, 2): 17, (2, 0, 1): 18, (1, 2, 0): 19}[self.plane]
         self.add_many(points, False, duration, feed, self.row,
@@ -1608,6 +1895,17 @@ def _tilt_travel(kinematics) -> tuple[float, float]:
     low, high = getattr(kinematics, "tilt_limits", (None, None))
     return (-math.pi if low is None else max(low, -math.pi),
             math.pi if high is None else min(high, math.pi))
+
+
+def _euler_zxz(i: float, j: float, k: float) -> np.ndarray:
+    """Rotation Rz(i) Rx(j) Rz(k) (degrees): the columns are the tilted frame's axes."""
+    def rz(t):
+        c, s = math.cos(math.radians(t)), math.sin(math.radians(t))
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    c, s = math.cos(math.radians(j)), math.sin(math.radians(j))
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return rz(i) @ rx @ rz(k)
 
 
 def _degrees(position) -> tuple[float, ...]:
