@@ -973,3 +973,53 @@ def test_tilted_working_plane_g68_2_g53_1(xyzac, tmp_path):
     # G69: machine axes again
     assert not program.tcp_move[-1]
     np.testing.assert_allclose(program.q[-1, :3], [0, 0, 60], atol=1e-12)
+
+
+# --------------------------------------------------------------------------- a post's program
+
+
+def test_fanuc_style_trunnion_program(tmp_path):
+    """data/fanuc_trunnion.nc, written like a Fanuc five-axis post's output: G28 G91 Z0.
+    retracts, G43.4 TCP finishing with an arc and G93 blocks, then 3+2 drilling under
+    G68.2/G53.1 with G81 and G83, G53 retract; timed within the machine's limits."""
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    from precontour.trajectory import program_trajectory, summarize
+    machine = parse_machine(builtin_machine_text() + "[gcode]\ng28 = [0.0, 0.0, 500.0, 0.0, 0.0]\n",
+                            "shop.toml")
+    kin = machine.kinematics
+    program = read_program(DATA / "fanuc_trunnion.nc", machine)
+    pm = program.programmed
+    tips, orientations = kin.forward(program.q)
+    assert program.start_line == 15
+    np.testing.assert_allclose(kin.forward(program.start)[0], [10, -5, 20], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(program.start[3:]), [-20, 30], atol=1e-12)
+    # the TCP finish: tool tips as programmed, G93 blocks in 60/F s
+    finish = (program.line >= 16) & (program.line <= 23)
+    assert program.tcp_move[finish].all()
+    last = {line: k for k, line in enumerate(program.line)}
+    np.testing.assert_allclose(tips[last[20]], [15.5, -0.5, 0.2], atol=1e-9)
+    np.testing.assert_allclose(tips[last[23]], [6, 6, 0], atol=1e-9)
+    np.testing.assert_allclose([program.duration[program.line == 22].sum(),
+                                program.duration[program.line == 23].sum()], [60 / 40, 60 / 35])
+    arc = tips[program.line == 21]
+    np.testing.assert_allclose(np.hypot(arc[:, 0] - 13, arc[:, 1] - 1.5), math.hypot(2.5, 2),
+                               atol=1e-9)
+    # G28 G91 Z0.: machine Z to the machine file's reference, nothing else moves
+    np.testing.assert_allclose(program.q[last[26], 2], 500.0)
+    np.testing.assert_allclose(program.q[last[26], [0, 1]], program.q[last[24], [0, 1]])
+    # 3+2: the tool along the plane's Z (15 deg about X), the holes in the plane's frame
+    z_axis = np.array([0.0, math.sin(math.radians(15)), math.cos(math.radians(15))])
+    drilling = (program.line >= 34) & (program.line <= 39)
+    np.testing.assert_allclose(orientations[drilling], np.tile(z_axis, (drilling.sum(), 1)),
+                               atol=1e-12)
+    rotation = np.array([[1, 0, 0], [0, z_axis[2], z_axis[1]], [0, -z_axis[1], z_axis[2]]])
+    bottoms = [tips[k] for k in range(len(tips)) if pm.kind[np.searchsorted(pm.first, k,
+                                                                            "right") - 1] == 1
+               and program.line[k] in (36, 37, 38)]
+    np.testing.assert_allclose(bottoms, [rotation @ [x, y, -3] for x, y in
+                                         ((5, 5), (-5, 5), (-5, -5))], atol=1e-9)
+    # G53 G0 Z500.: machine Z; the last G28 G91 Z0. to the reference too
+    np.testing.assert_allclose(program.q[last[42], 2], 500.0)
+    assert not program.tcp_move[last[42]]
+    trajectory = program_trajectory(program, machine)
+    assert summarize(trajectory, machine).within_limits
