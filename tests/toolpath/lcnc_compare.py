@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import shutil
 import subprocess
@@ -189,7 +188,7 @@ class Comparison:
     n_dwells: int = 0
 
 
-def _length(start, end, rotary):
+def _length(start, end):
     """LinuxCNC's length of a straight move for its feed: XYZ if they move, else ABC."""
     d = np.linalg.norm(end[:3] - start[:3])
     return d if d > 0 else np.linalg.norm(end[3:] - start[3:])
@@ -211,7 +210,7 @@ def compare(program, machine, reference: dict, rs274: list[dict] | None = None
     k0 = len(moves) - pm.n_moves
     assert k0 >= 0, (f"{program.source}: LinuxCNC has {len(moves)} moves, precontour "
                      f"{pm.n_moves} after its start")
-    assert all(m["kind"] == "traverse" for m in moves[:k0 - 1]), (
+    assert all(m["kind"] == "traverse" for m in moves[:max(k0 - 1, 0)]), (
         f"{program.source}: LinuxCNC feeds before precontour's start (line "
         f"{program.start_line}): {[m['line'] for m in moves[:k0] if m['kind'] != 'traverse']}")
     ref = moves[k0:]
@@ -258,7 +257,7 @@ def compare(program, machine, reference: dict, rs274: list[dict] | None = None
             if r["kind"] == "arc":
                 length = _arc_length(prev, pm.end[k], pm.centre[k], pm.plane[k], pm.turns[k])
             else:
-                length = _length(prev, pm.end[k], None)
+                length = _length(prev, pm.end[k])
             rotary_only = (r["kind"] == "feed" and np.linalg.norm(pm.end[k][:3] - prev[:3]) == 0
                            and np.linalg.norm(pm.end[k][3:] - prev[3:]) > 0)
             if rotary_only and r.get("inch"):
