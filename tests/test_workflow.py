@@ -262,7 +262,7 @@ def test_export_bad_inputs(tmp_path, capsys):
 def test_run_bad_inputs(tmp_path, capsys):
     program = _write_cl(tmp_path / "p.csv", "paper")
     gcode = tmp_path / "home.ngc"
-    gcode.write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG28 Z0\n")
+    gcode.write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG41 D1\n")
     machine_file = tmp_path / "m.toml"
     from precontour.machine.machine_file import builtin_machine_text
     machine_file.write_text(builtin_machine_text())
@@ -286,7 +286,7 @@ def test_run_bad_inputs(tmp_path, capsys):
          r"report folder is a file"),
         (["run", str(program), *RUN_MACHINE, "-o", out, "--report", str(tmp_path / "a" / "b")],
          r"parent does not exist"),
-        (["run", str(gcode), *RUN_MACHINE, "-o", out], r"home\.ngc, line 3, word 'G28'"),
+        (["run", str(gcode), *RUN_MACHINE, "-o", out], r"home\.ngc, line 3, word 'G41'"),
         (["run", str(program), *RUN_MACHINE, "--tcp", "-o", out],
          r"--tcp applies to G-code programs only"),
     ]

@@ -4,7 +4,9 @@ A machine file has a ``[kinematics]`` table (``type`` picks a module of
 :mod:`precontour.machine.kinematics`), one ``[drives.<axis>]`` table per axis of the machine
 (X Y Z A C, or X Y Z B C on a B-C machine: the kinematics' ``axis_names``) with an optional
 ``friction`` table and optional travel ``p_min``/``p_max``, and named ``[controllers.<name>]``
-tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`.
+tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`,
+and an optional ``[gcode]`` table of the controller data G-code programs refer to (G28/G30
+reference positions, work offsets; :mod:`precontour.machine.gcode`).
 The tilt drive's travel (slot 3) bounds the tilt sign that inverse kinematics picks, unless
 the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``). Every value is
 checked; unknown and missing keys are errors naming the file, table and key. Units: mm, rad,
@@ -24,6 +26,7 @@ from .controllers import CONTROLLER_TYPES, Controller, check_closed_loop_bases
 from .drives import AXES, Drive, Friction
 from ..defaults import BUILTIN_MACHINES, DEFAULT_SERVO_PERIOD
 from ..defaults import builtin_machine_text as _builtin_text
+from .gcode import GcodeSettings, parse_gcode_settings
 from ..errors import MachineFileError
 from ..files import check_input_file
 from .kinematics import KINEMATICS_TYPES
@@ -42,6 +45,7 @@ class Machine:
     servo_period: float = 0.001
     description: str = ""
     source: str = ""
+    gcode: GcodeSettings = GcodeSettings()
 
     def controller(self, name: str) -> Controller:
         try:
@@ -204,10 +208,11 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         raise controllers_table.error(None, "a machine needs at least one controller")
     check_closed_loop_bases(controllers, lambda ctrl_name, message: MachineFileError(
         f"[controllers.{ctrl_name}] {message}", source=source))
+    gcode = parse_gcode_settings(top.get_table("gcode", required=False), axis_names)
     top.finish()
     return Machine(name=name, kinematics=kinematics, drives=drives,
                    controllers=MappingProxyType(controllers), servo_period=servo_period,
-                   description=description, source=source)
+                   description=description, source=source, gcode=gcode)
 
 
 def _parse_drive(axis: str, table: ConfigTable) -> Drive:
