@@ -28,7 +28,7 @@ from matplotlib.ticker import MaxNLocator
 from ..prediction.contour import ContourErrors
 from ..machine.drives import AXES, ROTARY_AXES
 
-from ..files import atomic_write, make_folder
+from ..files import OutputSet, atomic_write, make_folder
 from ..machine.machine_file import Machine
 from .demo import MACHINE_MODELS, DemoResult, compute_demo, demo_file_names
 from .progress import Progress
@@ -374,9 +374,14 @@ def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = Non
     """Write the report folder of a demo: one PNG per figure, the table as CSV and Markdown,
     and ``index.html`` with everything embedded. Overwrites only these files.
 
-    Returns the paths written, ``index.html`` last.
+    Returns the paths written, ``index.html`` last. The files replace the old ones together,
+    when all are written (:class:`~precontour.files.OutputSet`).
     """
-    rows = table_rows(result) if rows is None else rows
+    with OutputSet():
+        return _write_demo_files(result, table_rows(result) if rows is None else rows)
+
+
+def _write_demo_files(result: "DemoResult", rows: Sequence[Mapping]) -> list[Path]:
     out = make_folder(result.out_dir)
     names = demo_file_names(result.paths, result.controllers)
     written = [write_table_csv(rows, out / names["table.csv"]),

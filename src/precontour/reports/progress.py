@@ -10,6 +10,8 @@ import sys
 import time
 from typing import Callable, TextIO
 
+from ..files import check_signals
+
 #: ``progress(done, total, message)``: called before each step (done = steps finished).
 Progress = Callable[[int, int, str], None]
 
@@ -42,6 +44,7 @@ class ProgressLine:
         self._width = 0
 
     def __call__(self, done: int, total: int, message: str) -> None:
+        check_signals()  # a step begins: where a SIGTERM or Ctrl-C stops the command
         text = f"[{time.perf_counter() - self.start:7.1f} s] {done:3d}/{total} {message}"
         if self.tty:
             pad = max(0, self._width - len(text))
