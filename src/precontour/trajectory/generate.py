@@ -31,6 +31,23 @@ def estimate_samples(length: float, feed: float, ts: float, dwell: float) -> flo
     return length / (feed * ts) + dwell / ts + 1.0
 
 
+def check_sample_estimate(estimate: float, limit: int | None, detail: str, *,
+                          source: str | None = None, bound: str = "at least",
+                          what: str = "trajectory", option: str | None = "--max-samples"
+                          ) -> None:
+    """Refuse, before any sample is made, a ``what`` whose estimated sample count exceeds
+    ``limit`` (default :func:`default_max_samples`): the one check and message of every
+    command that makes long trajectories (``trajectory``, ``run``, ``excite``). ``detail``
+    says where the estimate comes from, ``bound`` how it bounds the count."""
+    limit = default_max_samples() if limit is None else int(limit)
+    if not estimate <= limit:
+        how = f"max_samples, option {option}" if option else "max_samples"
+        raise InputError(
+            f"the {what} would have {bound} {estimate:.3g} samples ({detail}), more than the "
+            f"limit of {limit} ({how}; default sized to this machine's memory)",
+            source=source or None, field="max_samples")
+
+
 def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
                         acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
                         l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL,
@@ -88,13 +105,9 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
             raise ValueError(f"lines must have one entry per tool-path point "
                              f"({toolpath.n_points}), got shape {lines.shape}")
     path = fit_toolpath(toolpath, l_eq=l_eq)
-    estimate = estimate_samples(path.length, feed, ts, dwell)
-    if not estimate <= limit:
-        raise InputError(
-            f"the trajectory would have at least {estimate:.3g} samples ({path.length:.6g} mm "
-            f"of path at most {feed:g} mm/s, sampled every {ts:g} s, and a {dwell:g} s dwell), "
-            f"more than the limit of {limit} (max_samples, option --max-samples; default sized "
-            "to this machine's memory)", source=toolpath.source or None, field="max_samples")
+    check_sample_estimate(estimate_samples(path.length, feed, ts, dwell), limit,
+                          f"{path.length:.6g} mm of path at most {feed:g} mm/s, sampled every "
+                          f"{ts:g} s, and a {dwell:g} s dwell", source=toolpath.source)
     n_hold = int(round(dwell / ts))
     profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
                         programmed_feed=toolpath.feed, max_samples=max(1, limit - n_hold))
