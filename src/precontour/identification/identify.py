@@ -130,6 +130,12 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
             if found is None:
                 notes[axis] = (f"axis {axis}: too little motion at speed to identify J, B and "
                                "friction from the currents; kept the base drive")
+            elif not (np.isfinite(found.J) and found.J > 0 and np.isfinite(found.B)):
+                # a machine file needs J > 0: say which log and column, not the file's key
+                raise InputError(f"the motor current of {axis} does not fit its motion: it "
+                                 f"gives an inertia J = {found.J:.4g} kg m^2 (must be > 0); is "
+                                 "its sign or scale (A, kt) that of the drive's torque?",
+                                 source=log.source, field=f"I_{axis}")
             else:
                 physical[axis] = found
     if not fits:
