@@ -30,6 +30,8 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..defaults import DEFAULT_LEARNING_PASSES
+from ..errors import PrecontourError
+from ..files import check_signals
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
@@ -207,15 +209,39 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     candidates = []
 
     def consider(label, q):
-        q_act = actual(q)
-        errors = errors_of(q_act)
-        summary = errors.summary()
+        """Run ``q`` on the machine model and keep it as a candidate; None (and a candidate
+        never kept) when it diverged: a command or its motion that is not finite, or that
+        the machine model or the contour errors refuse (e.g. coordinates out of range)."""
+        check_signals()  # between machine runs: where a SIGTERM or Ctrl-C stops learning
+        q_act = summary = None
+        if np.all(np.isfinite(q)):
+            try:
+                with np.errstate(all="ignore"):
+                    q_act = actual(q)
+                    if np.all(np.isfinite(q_act)):
+                        errors = errors_of(q_act)
+                        summary = errors.summary()
+            except PrecontourError:
+                q_act = None
+        if summary is None or not all(np.isfinite(v) for v in summary.values()):
+            candidates.append((LearningCandidate(label + " (diverged)", limit, False), q,
+                               np.inf))
+            return None
         ok = (all(summary[key] <= limit[key] for key in limit)
               and (admissible is None or admissible(q)))
         candidates.append((LearningCandidate(label, summary, ok), q, _max_score(errors)))
         if progress is not None:
             progress(label, summary)
         return q_act
+
+    def step_from(q_cmd, q_act):
+        """The next iterate, or None when the update diverged."""
+        try:
+            with np.errstate(all="ignore"):
+                q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+        except PrecontourError:
+            return None
+        return q_new if np.all(np.isfinite(q_new)) else None
 
     def consider_settled(label, q):
         for delay, start in settle_starts:
@@ -226,26 +252,38 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                        _max_score(reference_errors)))
     q_act_linear = consider("linear", q_linear)
     consider_settled("linear", q_linear)
-    # The plain sequence: each pass applies the whole update.
+    # The plain sequence: each pass applies the whole update. A sequence that diverges (an
+    # iterate not finite, or refused by the machine model) ends there: what it tried before
+    # stays a candidate, the diverged iterate is never kept.
     q_cmd, q_act = q_linear, q_act_linear
     for n in range(1, passes + 1):
-        q_cmd = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+        q_cmd = None if q_act is None else step_from(q_cmd, q_act)
+        if q_cmd is None:
+            break
         q_act = consider(f"pass {n}", q_cmd)
+        if q_act is None:
+            break
         consider_settled(f"pass {n}", q_cmd)
     # The line-searched sequence: each pass continues from the best step along the update.
     if line_search_steps:
         q_cmd, q_act = q_linear, q_act_linear
         for n in range(1, passes + 1):
-            q_full = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+            q_full = None if q_act is None else step_from(q_cmd, q_act)
+            if q_full is None:
+                break
             tried = []
             for step in line_search_steps:
                 label = f"line-searched pass {n} (step {step:g})"
-                q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
+                with np.errstate(all="ignore"):
+                    q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
                 q_act_try = consider(label, q_try)
-                tried.append((candidates[-1][2], label, q_try, q_act_try))
+                if q_act_try is not None:
+                    tried.append((candidates[-1][2], label, q_try, q_act_try))
+            if not tried:
+                break
             _, label, q_cmd, q_act = min(tried, key=lambda entry: entry[0])
             consider_settled(label, q_cmd)
-    linear = next(c for c, _, _ in candidates if c.label == "linear")
+    linear = next(c for c, _, _ in candidates if c.label in ("linear", "linear (diverged)"))
     chosen, q_kept, _ = min((entry for entry in candidates if entry[0].accepted),
                             key=lambda entry: entry[2])
     report = LearningReport(chosen=chosen.label, uncompensated=limit, linear=linear.summary,
