@@ -31,8 +31,7 @@ from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS,
                        GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, builtin_machines,
                        default_max_samples)
 from .errors import NOTICES, InputError, PrecontourError
-from .files import (Terminated, check_outputs, check_report_folder, input_files,
-                    sigterm_as_exception)
+from .files import OutputSet, Terminated, input_files, interruption, sigterm_as_exception
 
 EXIT_USAGE = 2
 
@@ -61,15 +60,24 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print(f"precontour: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
-    except Terminated as exc:
-        print("precontour: terminated", file=sys.stderr)
-        return int(exc.code)
-    except KeyboardInterrupt:  # pragma: no cover - interactive
-        print("precontour: interrupted", file=sys.stderr)
-        return 130
+    except (Terminated, KeyboardInterrupt, SystemError) as exc:
+        # SystemError: a compiled call that a second signal interrupted
+        stop = interruption(exc)
+        if stop is None:
+            raise
+        return _stopped(stop)
     finally:
         NOTICES.removeHandler(notices)
         NOTICES.propagate = propagate
+
+
+def _stopped(exc: BaseException) -> int:
+    """The one line and the exit code of a command stopped by SIGTERM or Ctrl-C."""
+    if isinstance(exc, Terminated):
+        print("precontour: terminated", file=sys.stderr)
+        return int(exc.code)
+    print("precontour: interrupted", file=sys.stderr)
+    return 130
 
 
 def _one_line(exc: Exception) -> str:
@@ -325,12 +333,14 @@ def build_parser() -> argparse.ArgumentParser:
                              "(G-code / halstreamer, needs precontour.toolpath.writers)")
     excite.add_argument("--safety", type=_positive_float, default=DEFAULT_SAFETY, metavar="F",
                         help=f"fraction of v_max, a_max, j_max used (default {DEFAULT_SAFETY:g})")
-    excite.add_argument("--travel-linear", type=_positive_float, default=DEFAULT_TRAVEL_LINEAR,
+    excite.add_argument("--travel-linear", type=_positive_float, default=None,
                         metavar="MM", help="half travel of X, Y, Z around the start (default "
-                                           f"{DEFAULT_TRAVEL_LINEAR:g} mm)")
-    excite.add_argument("--travel-rotary", type=_positive_float, default=DEFAULT_TRAVEL_ROTARY,
+                                           f"{DEFAULT_TRAVEL_LINEAR:g} mm, shortened to fit an "
+                                           "axis's travel; one given must fit)")
+    excite.add_argument("--travel-rotary", type=_positive_float, default=None,
                         metavar="RAD", help="half travel of A, C around the start (default "
-                                            f"{DEFAULT_TRAVEL_ROTARY:g} rad)")
+                                            f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
+                                            "an axis's travel; one given must fit)")
     excite.add_argument("--axes", default="XYZAC", metavar="AXES",
                         help="axes to excite (default XYZAC)")
     excite.set_defaults(run=run_excite)
@@ -809,9 +819,11 @@ def run_identify(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     inputs = input_files(args.log, args.machine)
-    check_outputs([args.output], inputs)
+    outputs = OutputSet(inputs)   # the machine file and the report: checked now, written as one
+    outputs.file(args.output)
     if args.report is not None:
-        check_report_folder(args.report, (), inputs, what="identification report")
+        from .reports.identify_report import IDENTIFY_REPORT_FILES
+        outputs.folder(args.report, IDENTIFY_REPORT_FILES, what="identification report")
     base = load_machine(args.machine)
     data, _ = machine_data(args.machine)
     columns = None if args.columns is None else args.columns.split(",")
@@ -820,7 +832,11 @@ def run_identify(args: argparse.Namespace) -> int:
                          angle_scale=np.pi / 180 if args.angles == "deg" else 1.0)
     result = identify(log, base, data, name=args.name, order=args.order,
                       base_controller=args.base_controller)
-    write_text(args.output, result.text, inputs=inputs)
+    with outputs:
+        write_text(args.output, result.text, inputs=inputs)
+        if args.report is not None:
+            from .reports.identify_report import write_identify_report
+            index = write_identify_report(result, args.report)
     print(f"identified {len(result.axes)} axis/axes of {base.name} from {args.log} "
           f"({log.n_samples} samples, {log.period * 1e3:.6g} ms); base controller "
           f"{result.base_controller.name}")
@@ -828,8 +844,6 @@ def run_identify(args: argparse.Namespace) -> int:
     for note in result.notes.values():
         print(note)
     if args.report is not None:
-        from .reports.identify_report import write_identify_report
-        index = write_identify_report(result, args.report)
         print(f"report: {index}")
     print(f"wrote {args.output} (controller {args.name!r}, type tf) in "
           f"{time.perf_counter() - start:.1f} s")
@@ -860,18 +874,20 @@ def format_identification_table(result) -> str:
 
 def run_excite(args: argparse.Namespace) -> int:
     from .identification import excitation_trajectory, write_excitation
+    from .identification.excitation import check_excitation_output
     from .machine.drives import AXES, ROTARY_AXES
     from .machine.machine_file import load_machine
 
     start = time.perf_counter()
-    check_outputs([args.output], input_files(args.machine))
+    check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
     axes = tuple(dict.fromkeys(args.axes.upper()))
     unknown = [a for a in axes if a not in AXES]
     if unknown or not axes:
         raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
                          field="axes")
-    travel = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
+    given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
+    travel = {a: value for a, value in given.items() if value is not None}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
     write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
@@ -899,8 +915,11 @@ def run_run(args: argparse.Namespace) -> int:
     from .workflow import RunOutputs, run_program, write_run_outputs
 
     start = time.perf_counter()
+    report_files = ()
+    if args.report is not None:
+        from .reports.run_report import RUN_REPORT_FILES as report_files
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
-                         report=args.report)
+                         report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
     progress = ProgressLine(sys.stderr)
     try:
@@ -910,11 +929,13 @@ def run_run(args: argparse.Namespace) -> int:
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn)
         files = []
-        if args.report is not None:
-            from .reports.run_report import write_run_report
-            progress(4, 4, f"report {args.report}")
-            files += write_run_report(result, args.report)
-        files = write_run_outputs(result, outputs, inputs) + files
+        # -o, --stream, --commands and the report replace the old files together, or none
+        with outputs.output_set(inputs):
+            if args.report is not None:
+                from .reports.run_report import write_run_report
+                progress(4, 4, f"report {args.report}")
+                files += write_run_report(result, args.report)
+            files = write_run_outputs(result, outputs, inputs) + files
     finally:
         progress.close()
     print(f"{args.program} on {result.machine.name}, controller {args.controller}: "

@@ -28,6 +28,7 @@ from .compensation.within_limits import (LimitedCompensation, compensate_within_
 from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, EXPORT_FORMATS,
                        default_max_samples)
 from .errors import InputError, MachineLimitError, notice
+from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors
 from .simulation.virtual_machine import realistic_actual
@@ -37,8 +38,8 @@ from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_f
 from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
-from .trajectory.program import program_trajectory
-from .trajectory.limits import AxisLimits, check_limits
+from .trajectory.program import check_program_samples, program_trajectory
+from .trajectory.limits import AxisLimits, check_limits, check_travel
 from .trajectory.sampled import Trajectory
 
 #: Extensions a G-code output may have (those the readers take as G-code).
@@ -64,7 +65,8 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program, and its non-motion lines to keep (or None).
 
-    The one place ``run`` reads its input. G-code is read as a CNC executes it
+    The one place ``run`` reads its input (:func:`read_run_program`, then
+    :func:`plan_run_program`). G-code is read as a CNC executes it
     (:func:`~precontour.toolpath.read_program`, then
     :func:`~precontour.trajectory.program_trajectory` at the machine's servo period): the
     trajectory carries the source line of every sample, and the program's pass-through lines
@@ -76,20 +78,56 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     :func:`~precontour.defaults.default_max_samples`) are the planning options of the
     ``trajectory`` command.
     """
-    max_samples = default_max_samples() if max_samples is None else int(max_samples)
+    source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples)
+    return plan_run_program(source, machine, dwell=dwell, corner_tolerance=corner_tolerance,
+                            max_samples=max_samples)
+
+
+@dataclass(frozen=True)
+class RunProgram:
+    """A program as ``run`` read it: a G-code ``program`` (``tcp``: read with ``--tcp``) or
+    CL data (``toolpath``, the :func:`~precontour.toolpath.read_toolpath_report`)."""
+
+    path: Path
+    program: object | None = None
+    toolpath: object | None = None
+    tcp: bool = False
+
+
+def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
+                     dwell: float = DEFAULT_DWELL, max_samples: int | None = None) -> RunProgram:
+    """Read and check ``run``'s input, before any progress is shown: every error in the file
+    comes first, and for G-code also a trajectory too long to make (the sample estimate of
+    :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``)."""
     if toolpath_format(path) == "gcode":
         program = read_program(path, machine, tcp=tcp)
         for text in program.notices:
             notice(text)
-        # the output gives machine axes: lines that switch TCP mode on or off stay comments
-        passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp, tcp_all=tcp)
-        return program_trajectory(program, machine, ts=machine.servo_period, dwell=dwell,
-                                  tolerance=corner_tolerance,
-                                  max_samples=max_samples), passthrough
+        check_program_samples(program, machine, ts=machine.servo_period, dwell=dwell,
+                              max_samples=max_samples)
+        return RunProgram(Path(path), program=program, tcp=tcp)
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")
-    report = read_toolpath_report(path, machine=machine)
+    return RunProgram(Path(path), toolpath=read_toolpath_report(path, machine=machine))
+
+
+def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
+                     corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                     max_samples: int | None = None
+                     ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
+    """The planned trajectory of a program read by :func:`read_run_program`, and its
+    non-motion lines to keep (None for CL data)."""
+    max_samples = default_max_samples() if max_samples is None else int(max_samples)
+    if source.program is not None:
+        program = source.program
+        # the output gives machine axes: lines that switch TCP mode on or off stay comments
+        passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp,
+                                               tcp_all=source.tcp)
+        return program_trajectory(program, machine, ts=machine.servo_period, dwell=dwell,
+                                  tolerance=corner_tolerance,
+                                  max_samples=max_samples), passthrough
+    report = source.toolpath
     return generate_trajectory(report.toolpath, machine, ts=machine.servo_period, dwell=dwell,
                                max_samples=max_samples, lines=report.lines), None
 
@@ -97,15 +135,22 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
 @dataclass(frozen=True)
 class RunOutputs:
     """Where ``run`` writes: the G-code program, and optionally a halstreamer file, the
-    command table and a report folder."""
+    command table and a report folder with the files ``report_files`` (the report's own
+    names, checked against the inputs and the other outputs before computing)."""
 
     program: Path
     stream: Path | None = None
     commands: Path | None = None
     report: Path | None = None
+    report_files: tuple[str, ...] = ()
 
     def files(self) -> list[Path]:
         return [p for p in (self.program, self.stream, self.commands) if p is not None]
+
+    def output_set(self, inputs: Sequence[str | Path]) -> OutputSet:
+        """The outputs as one :class:`~precontour.files.OutputSet`, each checked now: written
+        inside ``with`` it, they replace the old files together or not at all."""
+        return check_run_outputs(self, inputs)
 
 
 @dataclass(frozen=True)
@@ -251,19 +296,16 @@ def _reduction(before: float, after: float) -> str:
     return f"{100 * (1 - after / before):.1f} %" if before > 0 else "-"
 
 
-def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None:
+def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> OutputSet:
     """Refuse, before computing, outputs that cannot be written or would overwrite an input
-    or each other."""
-    check_output_path(outputs.program, inputs=inputs, suffixes=GCODE_SUFFIXES)
+    or each other (the report's files included); return them as an
+    :class:`~precontour.files.OutputSet`."""
+    out = OutputSet(inputs)
+    out.file(outputs.program, suffixes=GCODE_SUFFIXES)
     if outputs.stream is not None:
-        check_output_path(outputs.stream, inputs=inputs)
+        out.file(outputs.stream)
     if outputs.commands is not None:
-        check_output_path(outputs.commands, inputs=inputs, suffixes=SUPPORTED_SUFFIXES)
-    paths = outputs.files()
-    resolved = [p.resolve() for p in paths]
-    for i, path in enumerate(resolved):
-        if path in resolved[:i]:
-            raise InputError("the same file is named for two outputs", source=str(paths[i]))
+        out.file(outputs.commands, suffixes=SUPPORTED_SUFFIXES)
     if outputs.report is not None:
         report = outputs.report
         if report.exists() and not report.is_dir():
@@ -274,6 +316,8 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
         for source in inputs:
             if Path(source).resolve() == report.resolve():
                 raise InputError("the report folder is an input", source=str(report))
+        out.folder(report, outputs.report_files, what="report")
+    return out
 
 
 def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path,
@@ -300,19 +344,24 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     total = 4
 
     def step(done: int, message: str) -> None:
+        check_signals()  # between stages: where a SIGTERM or Ctrl-C stops the run
         if progress is not None:
             progress(done, total, message)
 
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
     check_run_outputs(outputs, inputs)
     tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    step(0, f"read and plan {program}")
     start = time.perf_counter()
+    # every input is read and checked before the first progress line, so that a bad one
+    # is the first thing said
     machine_obj = load_machine(machine)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
-    planned, passthrough = load_program_trajectory(program, machine_obj, tcp=tcp, dwell=dwell,
-                                                   corner_tolerance=corner_tolerance,
-                                                   max_samples=max_samples)
+    source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
+                              max_samples=max_samples)
+    step(0, f"plan {program}")
+    planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
+                                            corner_tolerance=corner_tolerance,
+                                            max_samples=max_samples)
     line = getattr(planned, "line", None)
     timings["plan"] = time.perf_counter() - start
 
@@ -401,27 +450,30 @@ def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,
                       inputs: Sequence[str | Path]) -> list[Path]:
-    """Write the program and the optional stream and command files (each atomically)."""
+    """Write the program and the optional stream and command files as one set
+    (:class:`~precontour.files.OutputSet`: all replace the old files, or none does; inside
+    an outer set, e.g. with the report, with that one)."""
     commands = result.commands
     final = check_limits(commands.q, commands.ts, AxisLimits.from_machine(result.machine))
     if not final.ok:  # compensate_within_limits guarantees it; this guards the writing
         raise MachineLimitError("refusing to write commands beyond the machine's limits: "
                                 + final.format())
-    written = [write_text(outputs.program, result.program.text, inputs=inputs)]
     info = ProgramInfo(machine=result.machine.name, controller=result.controller,
                        method="contour pre-compensation within axis limits",
                        source=result.source)
-    if outputs.stream is not None:
-        written.append(write_text(outputs.stream, halstreamer_lines(commands.q, commands.ts,
-                                                                    info=info),
-                                  inputs=inputs))
-    if outputs.commands is not None:
-        # with the source line of each sample, where known: what the table's largest errors
-        # name can be looked up in it
-        table = commands if result.limited.line is None else replace(commands,
-                                                                     line=result.limited.line)
-        written.append(write_columns(outputs.commands, trajectory_columns(table),
-                                     inputs=inputs))
+    with outputs.output_set(inputs):
+        written = [write_text(outputs.program, result.program.text, inputs=inputs)]
+        if outputs.stream is not None:
+            written.append(write_text(outputs.stream,
+                                      halstreamer_lines(commands.q, commands.ts, info=info),
+                                      inputs=inputs))
+        if outputs.commands is not None:
+            # with the source line of each sample, where known: what the table's largest
+            # errors name can be looked up in it
+            table = commands if result.limited.line is None else replace(
+                commands, line=result.limited.line)
+            written.append(write_columns(outputs.commands, trajectory_columns(table),
+                                         inputs=inputs))
     return written
 
 
@@ -474,7 +526,10 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     machine_obj = load_machine(machine)
     if controller:
         machine_obj.controller(controller)  # an unknown name is an error, as elsewhere
-    check = check_limits(traj.q, traj.ts, AxisLimits.from_machine(machine_obj), t0=traj.t[0])
+    limits = AxisLimits.from_machine(machine_obj)
+    # each axis within its travel (the tilt axis within +-180 deg at most), named by row
+    check_travel(traj.q, limits, source=str(commands_path), axis_names=machine_obj.axis_names)
+    check = check_limits(traj.q, traj.ts, limits, t0=traj.t[0])
     if not check.ok:
         raise MachineLimitError(f"{commands_path}: the commands exceed the machine's limits "
                                 f"({check.format()}); `precontour run` slows such places down "
@@ -494,7 +549,7 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     return ExportResult(output, format, traj.n_samples, program.n_blocks)
 
 
-__all__ = ["EXPORT_FORMATS", "LargestError", "RunOutputs", "RunResult", "ExportResult",
-           "check_run_outputs", "largest_error",
-           "export_commands", "export_format", "load_program_trajectory", "run_program",
-           "write_run_outputs"]
+__all__ = ["EXPORT_FORMATS", "LargestError", "RunOutputs", "RunProgram", "RunResult",
+           "ExportResult", "check_run_outputs", "largest_error",
+           "export_commands", "export_format", "load_program_trajectory", "plan_run_program",
+           "read_run_program", "run_program", "write_run_outputs"]
