@@ -409,3 +409,17 @@ def test_interruption_finds_the_signal_behind_a_system_error():
     except SystemError as exc:
         assert isinstance(interruption(exc), Terminated)
     assert interruption(ValueError("x")) is None
+
+
+def test_a_signal_during_an_import_stops_at_once(tmp_path, monkeypatch):
+    """Start-up (the numerical libraries loading) computes nothing: Ctrl-C stops there at
+    once, as Python's own handler would, rather than when the first stage ends."""
+    import sys
+    (tmp_path / "slow_module_for_signals.py").write_text(
+        "import os, signal\nos.kill(os.getpid(), signal.SIGINT)\nsum(range(100000))\n"
+        "REACHED = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(KeyboardInterrupt):
+        with signals_deferred():
+            import slow_module_for_signals  # noqa: F401
+    assert "slow_module_for_signals" not in sys.modules

@@ -558,12 +558,15 @@ def test_fuzz_column_files_with_arbitrary_columns(tmp_path_factory, columns, suf
 # limits checked first, signals between stages
 
 
+import re  # noqa: E402
 import signal  # noqa: E402
-
-from precontour.files import Terminated  # noqa: E402
 
 #: A short G-code program: run takes a second or two on it.
 _SMALL_NC = "G21 G90 G94\nG0 X0 Y0 Z300 A0 C0\nG1 X10 Y5 F1200\nG1 X20 A2 C5\nM2\n"
+
+
+#: run and export name the machine (and run the controller).
+_MC = ["--machine", "zhang2013", "--controller", "pid-low"]
 
 
 @pytest.fixture
@@ -580,8 +583,8 @@ def _first_err_line(capsys):
 def test_run_report_never_overwrites_the_machine_file(work, small, capsys):
     (work / "R").mkdir()
     shutil.copy(work / "m.toml", work / "R" / "summary.txt")
-    line = fails_cleanly(["run", "small.ngc", "--machine", "R/summary.txt", "--report", "R",
-                          "-o", "out.ngc"],
+    line = fails_cleanly(["run", "small.ngc", "--machine", "R/summary.txt", "--controller", "pid-low",
+                          "--report", "R", "-o", "out.ngc"],
                          r"R/summary.txt: refusing to overwrite an input file", work, capsys)
     assert "%]" not in line
 
@@ -598,7 +601,7 @@ def test_identify_report_never_overwrites_the_machine_file(work, capsys):
 
 def test_run_report_index_that_is_a_folder_fails_before_computing(work, small, capsys):
     (work / "R" / "index.html").mkdir(parents=True)
-    fails_cleanly(["run", "small.ngc", "--report", "R", "-o", "out.ngc"],
+    fails_cleanly(["run", "small.ngc", *_MC, "--report", "R", "-o", "out.ngc"],
                   r"R/index.html: is an existing folder", work, capsys)
     assert list((work / "R").iterdir()) == [work / "R" / "index.html"]
 
@@ -621,7 +624,7 @@ def test_run_on_a_full_disk_keeps_every_old_output(work, small, capsys, monkeypa
         return real(path, content)
 
     monkeypatch.setattr(files, "_write_temporary", full)
-    fails_cleanly(["run", "small.ngc", *_old_outputs(work)],
+    fails_cleanly(["run", "small.ngc", *_MC, *_old_outputs(work)],
                   r"s.txt: cannot write: no space left on device", work, capsys)
 
 
@@ -637,7 +640,7 @@ def test_run_interrupted_while_writing_keeps_every_old_output(work, small, capsy
         return real(path, content)
 
     monkeypatch.setattr(files, "_write_temporary", interrupted)
-    argv = ["run", "small.ngc", *_old_outputs(work)]
+    argv = ["run", "small.ngc", *_MC, *_old_outputs(work)]
     before = digest(work)
     code = main(argv)
     err = capsys.readouterr().err
@@ -660,7 +663,7 @@ def test_run_rename_failing_midway_keeps_every_old_output(work, small, capsys, m
         real(src, dst)
 
     monkeypatch.setattr(files, "_rename", second_fails)
-    fails_cleanly(["run", "small.ngc", *_old_outputs(work), "--report", "R"],
+    fails_cleanly(["run", "small.ngc", *_MC, *_old_outputs(work), "--report", "R"],
                   r"cannot write: Input/output error", work, capsys)
     assert len(calls) == 2 and not (work / "R").exists()
 
@@ -669,23 +672,29 @@ def test_run_refuses_a_huge_program_early_as_trajectory_does(work, capsys):
     (work / "huge.ngc").write_text("G21 G90\nG1 X0 Y0 Z0 A0 C0 F1000\nG1 X999999\n")
     messages = []
     for command in (["trajectory", "huge.ngc", "-o", "t.csv"],
-                    ["run", "huge.ngc", "-o", "o.ngc"]):
-        messages.append(fails_cleanly(
-            command, r"huge.ngc, field 'max_samples': the trajectory would have about 6e\+07 "
-                     r"samples .* more than the limit of \d+", work, capsys))
+                    ["run", "huge.ngc", *_MC, "-o", "o.ngc"]):
+        assert main(command) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1, err   # the error alone: no progress line before it
+        messages.append(err[0])
     assert messages[0] == messages[1]
+    assert re.search(r"^precontour: error: huge.ngc: the program's trajectory would have about "
+                     r"6e\+07 samples at ts = 0.001 s, more than \d+; raise ts", messages[0]), \
+        messages[0]
 
 
 def test_a_failing_run_says_the_error_first(work, capsys):
     (work / "home.ngc").write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG28 Z0\n")
     (work / "bad.toml").write_text("[machine]\nname = 1\n")
     for argv, match in (
-            (["run", "home.ngc", "-o", "o.ngc"], r"^precontour: error: home.ngc, line 3, word 'G28'"),
-            (["run", "home.ngc", "--controller", "nope", "-o", "o.ngc"], "unknown controller"),
-            (["run", "home.ngc", "--machine", "bad.toml", "-o", "o.ngc"], "bad.toml")):
+            (["run", "home.ngc", *_MC, "-o", "o.ngc"], r"^precontour: error: home.ngc, line 3, word 'G28'"),
+            (["run", "home.ngc", "--machine", "zhang2013", "--controller", "nope", "-o",
+              "o.ngc"], "unknown controller"),
+            (["run", "home.ngc", "--machine", "bad.toml", "--controller", "pid-low", "-o",
+              "o.ngc"], "bad.toml")):
         assert main(argv) == 2
         first, err = _first_err_line(capsys)
-        assert __import__("re").search(match, first), err
+        assert re.search(match, first), err
 
 
 def test_excite_travel_beyond_the_axis_is_refused(work, capsys):
@@ -721,7 +730,7 @@ def test_export_refuses_a_tilt_beyond_its_travel_suggesting_degrees(work, capsys
                                    "A": 90 + 0 * t, "C": 0 * t})
     for fmt in ("ngc", "txt"):
         fails_cleanly(["export", "deg.csv", "--format", "gcode" if fmt == "ngc" else
-                       "halstreamer", "-o", f"o.{fmt}"],
+                       "halstreamer", "--machine", "zhang2013", "-o", f"o.{fmt}"],
                       r"deg.csv, row 1, field 'A': A = 90 rad is outside the A axis's travel "
                       r"\[-3.14159, 3.14159\] rad .*were degrees given\? \(90 deg would be "
                       r"1.5708 rad\)", work, capsys)
@@ -740,7 +749,7 @@ def test_run_learning_that_diverges_is_not_kept(work, small, capsys, monkeypatch
     monkeypatch.setattr(within_limits, "learning_step", diverging)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert main(["run", "small.ngc", "--learn", "3", "-o", "o.ngc"]) == 0
+        assert main(["run", "small.ngc", *_MC, "--learn", "3", "-o", "o.ngc"]) == 0
     out = capsys.readouterr().out
     assert "kept linear" in out or "kept uncompensated" in out, out
     assert "nan" not in (work / "o.ngc").read_text().lower()
@@ -799,7 +808,7 @@ def test_a_signal_stops_run_between_stages_not_inside_one(work, small, capsys, m
 
     monkeypatch.setattr(workflow, "check_on_virtual_machine", stage)
     before = digest(work)
-    assert main(["run", "small.ngc", "-o", "o.ngc"]) == code
+    assert main(["run", "small.ngc", *_MC, "-o", "o.ngc"]) == code
     err = capsys.readouterr().err
     assert finished == [True]
     assert err.splitlines()[-1] == line and "Traceback" not in err, err
@@ -838,7 +847,7 @@ def test_a_c_wrap_is_unwrapped_alike_by_every_command(work, paper, capsys):
     for argv in (["predict", "wrap.csv", "-o", "p.csv"],
                  ["compensate", "wrap.csv", "--learn", "0", "-o", "c.csv"],
                  ["simulate", "wrap.csv", "-o", "s.csv"],
-                 ["export", "wrap.csv", "-o", "e.ngc"]):
+                 ["export", "wrap.csv", "--machine", "zhang2013", "-o", "e.ngc"]):
         assert main(argv) == 0, argv
         notes = [x for x in capsys.readouterr().err.splitlines()
                  if x.startswith("precontour: note:")]
@@ -848,3 +857,102 @@ def test_a_c_wrap_is_unwrapped_alike_by_every_command(work, paper, capsys):
     assert np.abs(np.diff(c["C"])).max() / 1e-3 <= machine.drive("C").v_max
     assert main(["compensate", "paper.csv", "--learn", "0", "-o", "c0.csv"]) == 0
     np.testing.assert_allclose(c["C"], read_columns(work / "c0.csv", ["C"])["C"], atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# Fuzzing the servo-log readers, the excitation's options and export: only precontour's own
+# errors, and what is made keeps the machine's limits and is accepted by the next command
+
+from precontour.identification.servo_log import read_servo_log  # noqa: E402
+
+_HALSAMPLER_TEXT = "".join(f"{k} {0.01 * k!r} {0.01 * k - 1e-4!r} {0.1 * (k % 7)!r}\n"
+                           for k in range(40)).encode()
+_HALSCOPE_TEXT = ("Sampling period is 1000000 ns\nX;X_act\n" + "".join(
+    f"{0.01 * k!r};{0.01 * k - 1e-4!r}\n" for k in range(40))).encode()
+_LOG_CSV = ("t,X,X_act,I_X\n" + "".join(f"{k * 1e-3!r},{0.01 * k!r},{0.01 * k - 1e-4!r},"
+                                        f"{0.1 + 0.01 * (k % 5)!r}\n"
+                                        for k in range(40))).encode()
+
+LOG_READERS = {
+    "halsampler.txt": (lambda p: read_servo_log(p, fmt="halsampler",
+                                                columns=["n", "X", "X_act", "I_X"],
+                                                default_period=1e-3), _HALSAMPLER_TEXT),
+    "halscope.txt": (lambda p: read_servo_log(p, fmt="halscope"), _HALSCOPE_TEXT),
+    "log.csv": (read_servo_log, _LOG_CSV),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LOG_READERS))
+def test_fuzz_servo_logs_arbitrary_and_mutated(tmp_path, name):
+    read, seed = LOG_READERS[name]
+    read(_write_seed(tmp_path / name, seed))   # the seed itself is valid
+
+    @FUZZ
+    @given(data=st.one_of(st.binary(max_size=2000), mutated(seed)))
+    def check(data):
+        _reads_cleanly(read, tmp_path / name, data)
+
+    check()
+
+
+_MACHINES = {name: load_machine(name) for name in ("zhang2013", "linuxcnc-xyzac-trt",
+                                                    "linuxcnc-xyzbc-trt")}
+
+
+@settings(FUZZ, max_examples=int(os.environ.get("FUZZ_EXCITE_EXAMPLES", "25")))
+@given(name=st.sampled_from(sorted(_MACHINES)),
+       axes=st.lists(st.sampled_from("XYZAC"), min_size=1, max_size=3, unique=True),
+       linear=st.one_of(st.none(), st.floats(1e-3, 1e9), st.sampled_from([0.0, -1.0, np.inf,
+                                                                         np.nan])),
+       rotary=st.one_of(st.none(), st.floats(1e-4, 10.0)),
+       safety=st.sampled_from([0.05, 0.5, 1.0]))
+def test_fuzz_excitation_options(name, axes, linear, rotary, safety):
+    """Any travel and safety: refused with precontour's error, or a motion within
+    ``safety`` of every velocity, acceleration and jerk limit and within every axis's travel
+    -- what export checks before it writes a program."""
+    from precontour.identification import excitation_trajectory
+    from precontour.trajectory.limits import AxisLimits, check_limits, check_travel
+
+    machine = _MACHINES[name]
+    travel = {a: (rotary if a in "AC" else linear) for a in axes}
+    travel = {a: v for a, v in travel.items() if v is not None}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            traj = excitation_trajectory(machine, axes=tuple(axes), travel=travel,
+                                         safety=safety, max_samples=300_000)
+        except PrecontourError:
+            return
+    limits = AxisLimits.from_machine(machine)
+    check_travel(traj.q, limits)
+    scaled = AxisLimits(limits.position_min, limits.position_max, safety * limits.velocity,
+                        safety * limits.acceleration, safety * limits.jerk)
+    assert check_limits(traj.q, traj.ts, scaled).ok
+
+
+@settings(FUZZ, max_examples=int(os.environ.get("FUZZ_EXPORT_EXAMPLES", "25")))
+@given(scale=st.sampled_from([1e-3, 1.0, 90.0, 1e3, 1e7]),
+       axis=st.integers(0, 4), n=st.integers(0, 60),
+       name=st.sampled_from(sorted(_MACHINES)))
+def test_fuzz_export_writes_only_what_the_gcode_reader_reads(tmp_path_factory, scale, axis, n,
+                                                             name):
+    """A command file with one axis scaled (degrees for radians, metres, nonsense): export
+    refuses it with one of precontour's errors, or writes a program that the G-code reader
+    reads back on the same machine."""
+    from precontour.toolpath import read_program
+    from precontour.workflow import export_commands
+
+    folder = tmp_path_factory.mktemp("export")
+    t = np.arange(n) * 1e-3
+    q = np.zeros((n, 5))
+    q[:, 2] = 100.0
+    q[:, axis] += scale * np.sin(np.pi * t) ** 2
+    path = folder / "cmd.csv"
+    _write_rows(path, {"t": t, **{a: q[:, i] for i, a in enumerate("XYZAC")}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            export_commands(path, folder / "o.ngc", machine=name)
+        except PrecontourError:
+            return
+        read_program(folder / "o.ngc", _MACHINES[name])

@@ -534,7 +534,8 @@ def signals_deferred() -> Iterator[None]:
     and so does the end of the block. Why: a handler that raises runs wherever the
     interpreter is, also inside a compiled (numba) call, which then fails with a
     ``SystemError`` instead of stopping. A second signal before the first was acted upon
-    raises at once (the user insists). Does nothing outside the main thread, or for a signal
+    raises at once (the user insists), and so does a signal during an import (a command's
+    start-up: nothing is computed yet). Does nothing outside the main thread, or for a signal
     someone else handles (nested blocks: the outermost one handles them)."""
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -542,7 +543,9 @@ def signals_deferred() -> Iterator[None]:
     installed = []
 
     def handler(signum, frame):
-        if _PENDING:
+        # a second signal, or one during an import (the numerical libraries loading when a
+        # command starts: plain Python, and nothing computed yet), stops at once
+        if _PENDING or _importing(frame):
             _PENDING.clear()
             raise _exception_for(signum)
         _PENDING.append(signum)
@@ -568,6 +571,15 @@ def signals_deferred() -> Iterator[None]:
     _restore(installed)
     if installed:
         check_signals()
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` runs within an import statement."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _restore(installed) -> None:

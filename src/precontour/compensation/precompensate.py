@@ -22,6 +22,7 @@ from scipy.ndimage import maximum_filter1d, uniform_filter1d
 
 from ..defaults import COMPENSATION_METHODS as METHODS
 from ..defaults import COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY
+from ..files import check_signals
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
@@ -182,6 +183,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
     for n in range(1, iterations + 1):
+        check_signals()  # between passes: where a SIGTERM or Ctrl-C stops compensating
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:

@@ -56,7 +56,7 @@ import numpy as np
 from ..defaults import DEFAULT_CORNER_TOLERANCE as DEFAULT_TOLERANCE
 from ..errors import PrecontourError
 from .feedplan import CHECK_RTOL, axis_limits
-from .generate import DEFAULT_DWELL, check_sample_estimate
+from .generate import DEFAULT_DWELL, default_max_samples
 from .sampled import Trajectory
 
 #: The plan aims this fraction below each axis limit; the check uses the full limits.
@@ -185,13 +185,14 @@ def _check_period(machine, ts, dwell) -> float:
 
 def _check_estimate(program, durations, holds, bounds, ts, max_samples) -> None:
     """The sample estimate: the nominal block times, the holds, and about 50 samples of
-    filter start-up and run-out per segment."""
+    filter start-up and run-out per segment; above ``max_samples`` (default
+    :func:`~precontour.trajectory.generate.default_max_samples`) the program is refused."""
+    limit = default_max_samples() if max_samples is None else int(max_samples)
     estimate = (durations.sum() + sum(h for _, h, _ in holds) * ts) / ts + len(bounds) * 50
-    check_sample_estimate(estimate, max_samples,
-                          f"{durations.sum():.6g} s of motion at the programmed feeds and the "
-                          f"axis limits and {sum(h for _, h, _ in holds) * ts:g} s of stops, "
-                          f"sampled every {ts:g} s; raise ts or split the program",
-                          source=program.source, bound="about")
+    if not estimate <= limit:
+        raise PrecontourError(f"{program.source}: the program's trajectory would have about "
+                              f"{estimate:.3g} samples at ts = {ts:g} s, more than "
+                              f"{limit}; raise ts or split the program")
 
 
 def _nominal_durations(program, dq, v_max):
