@@ -423,3 +423,31 @@ def test_a_signal_during_an_import_stops_at_once(tmp_path, monkeypatch):
         with signals_deferred():
             import slow_module_for_signals  # noqa: F401
     assert "slow_module_for_signals" not in sys.modules
+
+
+def test_output_set_without_hard_links_never_loses_a_file(tmp_path, monkeypatch):
+    """Where no hard link can keep an old file, a rename failing later cannot put it back:
+    the file renamed before stays the new one (removing it would lose both)."""
+    import precontour.files as files_module
+    files = _old_set(tmp_path)
+    real = files_module._rename
+    calls = []
+
+    def second_fails(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:
+            raise OSError(errno.EIO, "Input/output error")
+        real(src, dst)
+
+    def no_links(src, dst):
+        raise OSError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(files_module, "_rename", second_fails)
+    monkeypatch.setattr(os, "link", no_links)
+    with pytest.raises(OutputError, match=r"s.txt: cannot write"):
+        with _declared(tmp_path, files):
+            for name, path in files.items():
+                atomic_write(path, f"new {name}".encode())
+    assert files["a.ngc"].read_text() == "new a.ngc"
+    assert files["s.txt"].read_text() == "old s.txt" and files["c.csv"].read_text() == "old c.csv"
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]

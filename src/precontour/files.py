@@ -428,17 +428,20 @@ class OutputSet:
     def _commit(self) -> None:
         check_signals()
         staged = list(self._staged.values())
-        done: list[tuple[Path, Path | None]] = []   # renamed targets and their old files
+        # renamed targets: their old files (a hard link), or None for a new one, or False
+        # for an old one that could not be kept (no hard links there: it stays replaced)
+        done: list[tuple[Path, Path | None | bool]] = []
         target = None
         try:
             for target, tmp in staged:
-                backup = _keep_old(target) if len(staged) > 1 else None
+                existed = target.exists()
+                backup = _keep_old(target) if len(staged) > 1 and existed else None
                 try:
                     _rename(tmp, target)
                 except BaseException:
                     _unlink(backup)
                     raise
-                done.append((target, backup))
+                done.append((target, backup if backup is not None or not existed else False))
         except OSError as exc:
             _put_back(done)
             done = []
@@ -450,7 +453,8 @@ class OutputSet:
             raise
         finally:
             for _, backup in done:
-                _unlink(backup)
+                if backup:
+                    _unlink(backup)
             for _, tmp in staged:
                 _unlink(tmp)
             self._staged.clear()
@@ -481,13 +485,14 @@ def _keep_old(target: Path) -> Path | None:
     return backup
 
 
-def _put_back(done: list[tuple[Path, Path | None]]) -> None:
-    """Undo renames already done: the old file back, or a new one removed."""
+def _put_back(done) -> None:
+    """Undo renames already done: the old file back, or a new one removed (an old file that
+    could not be kept stays replaced: removing its successor would lose both)."""
     for target, backup in reversed(done):
         try:
-            if backup is not None:
+            if backup:
                 os.replace(backup, target)
-            else:
+            elif backup is None:
                 os.unlink(target)
         except OSError:  # pragma: no cover - nothing more can be done
             pass

@@ -545,6 +545,10 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
         return ExportResult(output, format, traj.n_samples, None)
     program = gcode_program(traj.t, traj.q, tolerance=tolerance, info=info,
                             axis_names=machine_obj.axis_names)
+    if "\nG1 " not in program.text:
+        # dwells only: a program the G-code reader (and so run and trajectory) refuses
+        raise InputError("the commands do not move by more than the written decimals (1e-5 mm, "
+                         "1e-6 deg): no motion to write as G-code", source=str(commands_path))
     write_text(output, program.text, inputs=inputs)
     return ExportResult(output, format, traj.n_samples, program.n_blocks)
 
