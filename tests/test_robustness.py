@@ -956,3 +956,17 @@ def test_fuzz_export_writes_only_what_the_gcode_reader_reads(tmp_path_factory, s
         except PrecontourError:
             return
         read_program(folder / "o.ngc", _MACHINES[name])
+
+
+def test_what_excite_writes_export_accepts(work, capsys):
+    """On the LinuxCNC machine the excitation of X went to 173 % of v_max, which export then
+    refused; now export takes it, and the G-code excite writes reads back."""
+    from precontour.toolpath import read_program
+    machine = "linuxcnc-xyzac-trt"
+    assert main(["excite", "--machine", machine, "--axes", "XA", "-o", "e.csv"]) == 0
+    assert main(["excite", "--machine", machine, "--axes", "XA", "-o", "e.ngc"]) == 0
+    assert main(["export", "e.csv", "--machine", machine, "-o", "x.ngc"]) == 0
+    assert main(["export", "e.csv", "--machine", machine, "--format", "halstreamer",
+                 "-o", "x.txt"]) == 0
+    read_program(work / "e.ngc", load_machine(machine))
+    capsys.readouterr()
