@@ -684,10 +684,10 @@ def test_run_refuses_a_huge_program_early_as_trajectory_does(work, capsys):
 
 
 def test_a_failing_run_says_the_error_first(work, capsys):
-    (work / "home.ngc").write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG28 Z0\n")
+    (work / "home.ngc").write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG1 X1..5\n")
     (work / "bad.toml").write_text("[machine]\nname = 1\n")
     for argv, match in (
-            (["run", "home.ngc", *_MC, "-o", "o.ngc"], r"^precontour: error: home.ngc, line 3, word 'G28'"),
+            (["run", "home.ngc", *_MC, "-o", "o.ngc"], r"^precontour: error: home.ngc, line 3, word 'X1..5'"),
             (["run", "home.ngc", "--machine", "zhang2013", "--controller", "nope", "-o",
               "o.ngc"], "unknown controller"),
             (["run", "home.ngc", "--machine", "bad.toml", "--controller", "pid-low", "-o",
