@@ -203,3 +203,15 @@ def test_machine_file_page_documents_every_key_of_the_built_in_machines():
         controllers = set(data["controllers"])
         for key in _keys(data) - axes_and_names - controllers:
             assert f"`{key}`" in text, (name, key)
+
+
+def test_machine_file_gcode_example_loads():
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+
+    blocks = [b for b in _code_blocks(DOCS / "machine-file.md", "toml")
+              if b.startswith("[gcode]")]
+    assert blocks, "docs/machine-file.md shows a [gcode] table"
+    for block in blocks:
+        machine = parse_machine(builtin_machine_text("linuxcnc-xyzac-trt") + "\n" + block,
+                                source="docs/machine-file.md")
+        assert machine.gcode.g28 is not None and machine.gcode.work_offsets

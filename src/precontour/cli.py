@@ -455,9 +455,11 @@ def _add_machine_options(parser: argparse.ArgumentParser, *, required: bool = Fa
 def _add_planning_options(parser: argparse.ArgumentParser) -> None:
     """The options of planning a trajectory from a program, shared by trajectory and run."""
     parser.add_argument("--tcp", action="store_true",
-                        help="G-code: the whole program is in tool centre point mode (X Y Z "
+                        help="G-code: the program starts in tool centre point mode (X Y Z "
                              "the tool tip, A C the rotary axes), for controllers that switch "
-                             "it with their own M code (LinuxCNC M428)")
+                             "it with an M code the machine file's [gcode] tcp_on does not "
+                             "name; the TCP-off M code ([gcode] tcp_off, default M429) still "
+                             "ends it, G49 and TRAFOOF do not")
     parser.add_argument("--dwell", type=_nonnegative_float, default=DEFAULT_DWELL, metavar="S",
                         help="hold the final position (and, for G-code, each M0/M1/M6 stop) "
                              "this long so the drives settle inside the trajectory "

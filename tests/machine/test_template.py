@@ -66,6 +66,10 @@ def test_template_names_every_key_the_loader_reads(kind, monkeypatch):
             table = header.group(1)
             headers.add(table)
             continue
+        if re.match(r"^# \[([\w.-]+)\]$", line):   # an optional table, commented out
+            table = line[3:-1]
+            headers.add(table)
+            continue
         entry = re.match(r"^(?:# )?([\w-]+) = (.+?)(?:\s+# (.+))?$", line)
         if entry:
             entries[(table, entry.group(1))] = entry.group(3)
@@ -84,6 +88,36 @@ def test_template_names_every_key_the_loader_reads(kind, monkeypatch):
         if key not in ("type",) and where.split(".")[0] != "controllers":
             described = entries[(where, key)] or _comment_above(text, where, key)
             assert described, (path, key)
+
+
+@pytest.mark.parametrize("kind", sorted(BUILTIN_OF_TYPE))
+def test_template_gcode_table_uncommented_loads_and_names_every_key(kind, monkeypatch):
+    """The commented-out [gcode] table, uncommented, is a valid table: every key the loader
+    reads is in it, and its values are what the loader makes of them."""
+    text = machine_template(kind)
+    entry = re.compile(r'^# (\[gcode(?:\.work_offsets)?\]|(?:[\w-]+|"[^"]+") = .+)$')
+    lines = text.splitlines()
+    block = [m.group(1) for line in lines[lines.index("# [gcode]"):]
+             if (m := entry.match(line))]
+    assert block[0] == "[gcode]" and "[gcode.work_offsets]" in block
+    asked = set()
+    original = ConfigTable._get
+
+    def recording(self, key, default):
+        asked.add((self.path, key))
+        return original(self, key, default)
+
+    monkeypatch.setattr(ConfigTable, "_get", recording)
+    machine = parse_machine(text + "\n".join(block) + "\n", source="template")
+    given = {re.match(r'^([\w-]+) = ', line).group(1) for line in block if "=" in line
+             and not line.startswith('"')}
+    assert {key for path, key in asked if path == "gcode"} - {"work_offsets"} <= given
+    assert ("gcode", "work_offsets") in asked
+    assert {"g28", "g30", "tcp_on", "tcp_off"} <= given
+    settings = machine.gcode
+    assert settings.g28 == settings.g30 == (0.0,) * 5
+    assert (settings.tcp_on, settings.tcp_off) == ((428,), (429,))
+    assert set(settings.work_offsets) == {"G54", "G59.1"}
 
 
 def _comment_above(text, table, key):

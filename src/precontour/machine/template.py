@@ -116,6 +116,18 @@ CONTROLLER_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
            ("den", "", "closed-loop x/X denominator in s, highest power first (a list); "
                        "proper and stable")),
 }
+#: ``[gcode]`` keys (optional table; precontour.machine.gcode): (key, unit, meaning). The
+#: positions are machine axes in the file's units; "{axes}" is the machine's axis names.
+GCODE_KEYS: tuple[tuple[str, str, str], ...] = (
+    ("g28", "mm, rad", "G28 reference position, the machine axes {axes} (default: the machine "
+                       "origin, all 0, said once when a program uses it)"),
+    ("g30", "mm, rad", "G30 reference position, the same (default: the machine origin)"),
+    ("tcp_on", "", "M codes that switch tool centre point mode on (default: M428, "
+                   "LinuxCNC's remapped switch; an empty list: none)"),
+    ("tcp_off", "", "M codes that switch every tool centre point mode off (default: M429)"),
+)
+_GCODE_EXAMPLE = {"tcp_on": ["M428"], "tcp_off": ["M429"]}
+
 _CONTROLLER_TITLES = {
     "pid": "PID position controller per axis",
     "p-pi": "cascaded P position / PI velocity loops per axis",
@@ -216,7 +228,43 @@ def machine_template(kinematics: str) -> str:
                         "--learn")
         for axis in data["drives"]:
             out.comment(f"{axis} = {{ num = [...], den = [...] }}")
+    out.blank()
+    _gcode_table(out, data.get("gcode"), tuple(data["drives"]))
     return out.text()
+
+
+def _gcode_table(out: "_Writer", table: dict | None, axes: tuple[str, ...]) -> None:
+    """The ``[gcode]`` table: the machine's own, or commented out with example values."""
+    names = " ".join(axes)
+    keys = tuple((key, unit, meaning.format(axes=names)) for key, unit, meaning in GCODE_KEYS)
+    offsets_comment = ("optional table: work offsets G54 ... G59, \"G59.1\" ... \"G59.3\", "
+                       "\"G54.1 P1\" ... \"G54.1 P300\" (names with a dot or a space in "
+                       f"quotes), each [mm, rad] the machine axes {names}; an offset not given "
+                       "is zero (said once when a program selects it)")
+    out.comment("optional table: what G-code programs refer to without giving it (machine "
+                f"axes {names} in mm and rad), and the site's tool centre point switches")
+    if table is None:
+        zeros = [0.0] * len(axes)
+        out.comment("[gcode]")
+        for key, unit, meaning in keys:
+            comment = f"[{unit}] {meaning}" if unit else meaning
+            out.commented(f"# {key} = {_toml_value(_GCODE_EXAMPLE.get(key, zeros))}", comment)
+        out.comment("")
+        out.comment(offsets_comment)
+        out.comment("[gcode.work_offsets]")
+        out.comment(f"G54 = {_toml_value(zeros)}")
+        out.comment(f"{_toml_key('G59.1')} = {_toml_value(zeros)}")
+        return
+    table = dict(table)
+    offsets = table.pop("work_offsets", None)
+    out.line("[gcode]")
+    _plain_table(out, table, keys, "[gcode]")
+    if offsets is not None:
+        out.blank()
+        out.comment(offsets_comment)
+        out.line("[gcode.work_offsets]")
+        for name, value in offsets.items():
+            out.line(f"{_toml_key(name)} = {_toml_value(value)}")
 
 
 def _explain_controller(out: "_Writer", kind: str) -> None:
