@@ -696,6 +696,15 @@ def test_m61_and_io_words_are_kept(machine, tmp_path):
     assert program.notices == ()
 
 
+
+def test_g97_spindle_rpm_mode_is_kept(machine, tmp_path):
+    """Fanuc-style posts start the spindle with ``G97 S.. M3`` (RPM mode, LinuxCNC's default
+    too): kept as a pass-through line, no notice."""
+    program = read(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG97 S8000 M3\nG1 X1 F60\n")
+    assert dict(program.passthrough) == {2: "G97 S8000 M3"}
+    assert program.notices == ()
+
+
 # --------------------------------------------------------------------------- TCP switches
 
 

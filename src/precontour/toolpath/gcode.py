@@ -43,7 +43,7 @@ What is read, block by block with the usual modal state:
   line); the ``line`` of a move is the line executing (inside a subroutine, its own);
 - kept for an output program (:attr:`Program.passthrough`): comments, T, S, H, D words, M3-M9,
   M61 Q, M62-M68 with their P E L Q words, G17-G19, G40, G43, G43.1/G43.2 (their axis words
-  are the tool length, not applied), G49, G61, G64, G80; any other M code is kept too, with a
+  are the tool length, not applied), G49, G61, G64, G80, G97; any other M code is kept too, with a
   one-line notice; a line with parameters keeps its values. G64 P (path tolerance) and
   G61/G61.1 (exact path: 0) are also kept per move for the timing.
 - canned cycles G73, G81-G83, G85-G87, G89 expanded into moves as LinuxCNC 2.9 does
@@ -106,7 +106,7 @@ _CYCLE_WORDS = {73: "RLQ", 81: "RL", 82: "RLP", 83: "RLQ", 85: "RL", 86: "RLP",
                 87: "RLIJK", 89: "RLP"}
 _PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
 #: G codes accepted and kept for an output program (they do not change the axis commands).
-PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 431, 432, 490, 610, 611, 640, 800])
+PASSTHROUGH_G = frozenset([170, 180, 190, 400, 430, 431, 432, 490, 610, 611, 640, 800, 970])
 #: Tool length codes whose axis words are the offset (LinuxCNC's G43.1, G43.2), not a move.
 _TOOL_LENGTH_WORDS = frozenset([431, 432])
 #: Work offsets G54-G59.3 and G54.1 (Pn), in tenths.
