@@ -9,7 +9,7 @@ import precontour
 
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
-STAGES = ("errors", "files", "piecewise", "machine", "toolpath", "trajectory", "tables",
+STAGES = ("errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory", "tables",
           "prediction", "compensation", "simulation", "identification", "workflow", "reports",
           "cli")
 

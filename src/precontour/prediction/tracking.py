@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import factorial
 
-import numba
 import numpy as np
 from scipy.interpolate import PPoly
 
+from ..kernels import jit
 from ..machine.drives import AXES, ROTARY_AXES, LinearErrorModel
 from .splinefit import (DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_min_jerk,
                         map_axes)
@@ -97,7 +97,7 @@ class TrackingError:
         return value.reshape(t.shape)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _error_at(breaks, forced, poles, powers, free, t):
     """e(t) without the offset at each time: the segment's polynomial part plus its free
     response, zero before the first break. The segment is found from the previous sample's
@@ -174,7 +174,7 @@ def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
                          offset=model.dc_gain * rest)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _chain_response(u, h, pole, residues, weight):
     """One pole's Jordan chain driven by the segment polynomials ``u`` (n_seg, deg + 1,
     ascending powers; the last segment is the hold, ``h`` the lengths of the others).

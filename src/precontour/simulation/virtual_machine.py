@@ -26,7 +26,6 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
@@ -36,6 +35,7 @@ from .closed_loop import CLOSED_LOOP_TYPES, simulate_closed_loop
 from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError, plain
+from ..kernels import jit
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
@@ -58,7 +58,7 @@ FF_SPEED_DEADBAND = 1e-8
 
 _N_AXES = len(AXES)
 
-_jit = numba.njit(cache=True, nogil=True)
+_jit = jit
 
 
 # --------------------------------------------------------------------------------------------

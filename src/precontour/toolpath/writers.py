@@ -23,9 +23,9 @@ from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
-from numba import njit
 
 from ..errors import InputError
+from ..kernels import jit
 from ..machine.drives import AXES
 
 #: Default decimation tolerances: 1 um on X, Y, Z and 1e-5 rad on A, C (``--tol 0.001,1e-5``).
@@ -130,7 +130,7 @@ def decimate(t: np.ndarray, q: np.ndarray, tolerance: np.ndarray,
     return np.flatnonzero(_decimate_scan(t, q, tolerance, must_keep))
 
 
-@njit(cache=True)
+@jit
 def _decimate_scan(t, q, tol, must_keep):  # pragma: no cover - compiled
     n, m = q.shape
     keep = np.zeros(n, dtype=np.bool_)
