@@ -427,9 +427,10 @@ def _isolation_chunks(first, stop, samples, chord, lo, hi, span, isolated, lower
     for chunk in range(first, stop):
         for block in range(chunk * _CHUNK, min(blocks, (chunk + 1) * _CHUNK)):
             start = block * ISOLATION_BLOCK
-            a = n
-            b = 0
-            for j in range(max(start - span, 0), min(start + ISOLATION_BLOCK + span, n)):
+            j0 = max(start - span, 0)
+            a = lo[j0]      # (not constants: literal arguments compile a callee once more)
+            b = hi[j0]
+            for j in range(j0, min(start + ISOLATION_BLOCK + span, n)):
                 a = min(a, lo[j])
                 b = max(b, hi[j])
             lower[block] = a

@@ -426,10 +426,10 @@ def _kkt_system(h, x_knots, first, ends, band_t):
     return ab, rhs
 
 
-@jit
 def _evaluate_at_samples(coef, t, knots):
     """Spline value at every sample; the knots are samples, so each segment's samples are a
-    contiguous run."""
+    contiguous run. (Called from Python: from compiled code, the constant arguments would
+    compile the kernel a second time, for their literal values.)"""
     return _evaluate_segments(coef, t, knots, 0, knots.size - 1, 0, t.size)
 
 

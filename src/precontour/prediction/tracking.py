@@ -111,7 +111,16 @@ def _error_at(breaks, forced, poles, powers, free, t):
     for k in range(t.size):
         x = t[k]
         if not (breaks[segment] <= x and (segment == last or x < breaks[segment + 1])):
-            segment = min(max(np.searchsorted(breaks, x, side="right") - 1, 0), last)
+            # the last break <= x (0 if none) by bisection: np.searchsorted's side="right",
+            # without compiling numpy's generic search (complex comparisons included)
+            lo, hi = 0, last
+            while lo < hi:
+                mid = (lo + hi + 1) >> 1
+                if breaks[mid] <= x:
+                    lo = mid
+                else:
+                    hi = mid - 1
+            segment = lo
         tau = x - breaks[segment]
         if tau < 0.0:
             value[k] = 0.0
