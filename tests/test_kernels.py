@@ -79,3 +79,18 @@ def test_run_chunks_passes_a_kernels_error_on():
 
     with pytest.raises(ValueError, match="chunk failed"):
         kernels.run_chunks(kernel, 8)
+
+
+def test_every_kernel_module_has_a_compile_estimate():
+    import importlib
+    import pkgutil
+
+    import precontour
+
+    for module in pkgutil.walk_packages(precontour.__path__, "precontour."):
+        if module.name != "precontour.__main__":
+            importlib.import_module(module.name)
+    modules = {dispatcher.py_func.__module__ for dispatcher in kernels._kernels}
+    assert "precontour.prediction.contour" in modules
+    assert modules <= set(kernels.COMPILE_SECONDS), modules - set(kernels.COMPILE_SECONDS)
+    assert 0 <= kernels.compile_seconds_left() <= sum(kernels.COMPILE_SECONDS.values())

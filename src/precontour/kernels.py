@@ -6,6 +6,10 @@ kernels' modules share about that:
 
 - :func:`jit`, the one decorator of every kernel (compiled lazily, on its first call, with the
   options the project uses; ``nogil`` so that :func:`run_chunks` can run it on threads).
+  Small helpers called per sample are inlined, preferably by LLVM (``forceinline=True``):
+  numba's own inlining (``inline="always"``) types and compiles a copy at every call site.
+  That is still the choice for a helper called with constant arguments, which numba would
+  otherwise compile once more for each constant's value.
 - A listener on numba's compile events that prints one line to stderr before the first kernel
   of the package compiles (:data:`NOTE`), so a first run does not look hung. numba only
   raises the event when a kernel is not in its cache, so a run on a warm cache prints nothing.
@@ -30,18 +34,19 @@ __all__ = ["jit", "run_chunks", "NOTE", "compile_seconds_left", "threads"]
 #: :func:`compile_seconds_left` rounded.
 NOTE = "precontour: note: compiling numerical kernels, once after installing: about {seconds} s"
 
-#: CPU seconds each kernel module takes to compile on an idle core, all of its kernels
-#: (``benchmarks/bench_compile.py``, the demo and the virtual machine's three laws); the
-#: note's estimate counts the modules whose kernels are not in the cache.
+#: CPU seconds each module's kernels take to compile, all of them (``benchmarks/
+#: bench_compile.py``: the demo on an empty cache, the best of three runs at load average 3 on
+#: the project's 2-core machine; the program writer's one kernel estimated). The note's
+#: estimate counts the modules whose kernels are not in the cache.
 COMPILE_SECONDS: dict[str, float] = {
     "precontour.prediction.contour": 4.0,
-    "precontour.trajectory.feedplan": 2.0,
-    "precontour.trajectory.pathspline": 2.0,
-    "precontour.piecewise": 2.0,
-    "precontour.simulation.virtual_machine": 3.0,
-    "precontour.simulation.control_laws": 1.0,
-    "precontour.prediction.splinefit": 1.5,
-    "precontour.prediction.tracking": 1.5,
+    "precontour.trajectory.pathspline": 2.8,
+    "precontour.trajectory.feedplan": 2.8,
+    "precontour.simulation.virtual_machine": 2.5,
+    "precontour.piecewise": 2.1,
+    "precontour.simulation.control_laws": 2.0,
+    "precontour.prediction.tracking": 1.7,
+    "precontour.prediction.splinefit": 1.3,
     "precontour.machine.kinematics._trunnion": 0.2,
     "precontour.toolpath.writers": 0.3,
 }
@@ -53,7 +58,8 @@ _lock = threading.Lock()
 
 def jit(function=None, **options):
     """``numba.njit`` with the project's options: cached on disk, compiled on first call,
-    releasing the GIL. Extra ``options`` go to numba (``inline``, ``error_model``)."""
+    releasing the GIL. Extra ``options`` go to numba (``forceinline``, ``inline``,
+    ``error_model``)."""
     options = {"cache": True, "nogil": True, **options}
 
     def decorate(f):

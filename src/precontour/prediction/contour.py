@@ -42,11 +42,12 @@ MAX_STEP = 0.005
 _TIP, _ORIENTATION = 0, 1
 #: Samples per task of the compiled search.
 _CHUNK = 4096
-# The small compiled helpers called several times per sample are inlined ("always"): a call
-# that passes arrays costs two atomic reference-count updates per array, which made the search
-# 2-3 times slower. The per-sample ones (_closest_parameter, _nearest_sample) are called: each
-# inlined copy costs compile time (all inlined, in parallel loops, it took 27 s to compile),
-# and one call per sample costs little (measured: the same speed).
+# The compiled helpers called per sample are inlined: a call that passes arrays costs two
+# atomic reference-count updates per array, which made the search 2-3 times slower. LLVM
+# inlines them (forceinline), not numba (inline="always"), which types and compiles a copy of
+# the helper at each call site: all of it inlined by numba, in a parallel loop, took 27 s to
+# compile, now 3 s. _distance is numba-inlined: called with a constant, it would be compiled
+# once more for that value.
 
 
 @dataclass(frozen=True)
@@ -235,7 +236,7 @@ def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
     return breaks, coef, np.ascontiguousarray(samples), chord
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _evaluate(breaks, coef, offset, x, hint, out):
     """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
     (Horner's scheme carried for the derivatives; dimensions offset .. offset + 2 of
@@ -261,7 +262,7 @@ def _evaluate(breaks, coef, offset, x, hint, out):
         out[2, d] = 2.0 * second
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
     -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
@@ -297,7 +298,7 @@ def _distance(kind, values, row, point):
     return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), dot)
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _chord(samples, k, point):
     s = 0.0
     for d in range(3):
@@ -305,7 +306,7 @@ def _chord(samples, k, point):
     return np.sqrt(s)
 
 
-@jit
+@jit(forceinline=True)
 def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
     that is also the smallest angle). Exact: from ``base`` down to the nearest of its
@@ -360,7 +361,7 @@ def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     return best_k
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _first_reaching(chord, j, direction, bound, target):
     """First index m beyond j (in ``direction``, up to ``bound``) with chord[m] at or past
     ``target``; bound + direction if none."""
@@ -392,7 +393,7 @@ ISOLATION_BLOCK = 8
 ISOLATION_SPAN = 4
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _block_core(block, n):
     """First and last sample of a block's core, and its centre sample."""
     start = block * ISOLATION_BLOCK
@@ -496,7 +497,7 @@ def _closest_chunks(first, stop, kind, t, samples, chord, isolated, lower, upper
                 closest[i, d] = out[0, d]
 
 
-@jit
+@jit(forceinline=True)
 def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
                        hi, out, spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;

@@ -243,7 +243,7 @@ def _grid_geometry(path, machine, s_grid):
     return dP, ddP, q
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _gradient_rows(i, last):
     """The rows :func:`numpy.gradient` differences at row i (central inside, one-sided at
     the ends) and how many grid steps apart they are."""
@@ -254,21 +254,21 @@ def _gradient_rows(i, last):
     return i + 1, i - 1, 2.0
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _slope_first(q, i, k, h):
     """:func:`numpy.gradient` of column k of q at row i, with numpy's operations."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
     return (q[upper, k] - q[lower, k]) / (steps * h)
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _slope_second(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_first` at row i."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
     return (_slope_first(q, upper, k, h) - _slope_first(q, lower, k, h)) / (steps * h)
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _slope_third(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_second` at row i."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
@@ -479,7 +479,7 @@ def _third_difference(x, k, i):
     return _second_difference(x, k + 1, i) - _second_difference(x, k, i)
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _first_ratio(s, P, q, k, ts, feed_here, feed, v):
     """Largest ratio of the first differences over interval k..k+1."""
     d0 = P[k + 1, 0] - P[k, 0]
@@ -492,7 +492,7 @@ def _first_ratio(s, P, q, k, ts, feed_here, feed, v):
     return r
 
 
-@jit(inline="always")
+@jit(forceinline=True)
 def _axis_jerk_ratio(q, k, ts3, j):
     """Largest |third difference / ts^3 / limit| of the axes over samples k..k+3 (before
     the cube root)."""
