@@ -53,7 +53,7 @@ COMPILE_SECONDS: dict[str, float] = {
 
 _kernels: list = []          # every dispatcher made by jit, for the estimate
 _noted = False
-_lock = threading.Lock()
+_note_lock = threading.Lock()
 
 
 def jit(function=None, **options):
@@ -99,7 +99,7 @@ class _Note(event.Listener):
         global _noted
         if _noted or not ev.data["dispatcher"].py_func.__module__.startswith("precontour."):
             return
-        with _lock:
+        with _note_lock:
             if _noted:
                 return
             _noted = True
@@ -121,6 +121,7 @@ def threads() -> int:
 
 _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
+_pool_lock = threading.Lock()
 
 
 def run_chunks(kernel, n_chunks: int, *args, grain: int = 1) -> None:
@@ -134,7 +135,7 @@ def run_chunks(kernel, n_chunks: int, *args, grain: int = 1) -> None:
         kernel(0, n_chunks, *args)
         return
     bounds = [n_chunks * w // workers for w in range(workers + 1)]
-    with _lock:
+    with _pool_lock:
         if _pool_size < workers - 1:
             _pool = ThreadPoolExecutor(max_workers=workers - 1,
                                        thread_name_prefix="precontour-kernel")
