@@ -6,7 +6,7 @@ folder (``NUMBA_CACHE_DIR``; the package's own ``__pycache__`` is not touched):
 
 1. ``precontour demo`` in a fresh process on the empty cache, then three times more on the
    cache it filled: wall time, CPU time (user + sys of the process) and the load average.
-2. The same command in this process on another empty cache, recording every compilation
+2. The same command in one process on another empty cache, recording every compilation
    numba does: per kernel, the signatures compiled and the CPU seconds of its compiling
    thread, exclusive of the kernels it calls (compiled on their own first and listed on
    their own) and inclusive of numba's implementations of the numpy and builtin functions it
@@ -16,8 +16,10 @@ Prints Markdown; ``--markdown FILE`` also writes it as a page stamped with the d
 version and the machine (``docs/speed_first_run.md``).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_compile.py [--markdown FILE] [--no-runs]
-[--top N] [-- CLI arguments]`` (after ``--``: the command measured in step 2, default
-``demo`` into a temporary folder).
+[--top N] [--baseline OLD/src [--baseline-label TEXT]] [-- CLI arguments]`` (after ``--``:
+the command measured in step 2, default ``demo`` into a temporary folder). ``--baseline``
+measures an older version the same way, after this one (its source folder, e.g. from
+``git archive``).
 """
 
 from __future__ import annotations
@@ -50,27 +52,42 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-runs", action="store_true",
                         help="skip step 1 (the demo in fresh processes)")
     parser.add_argument("--top", type=int, default=0, help="list only the N costliest kernels")
+    parser.add_argument("--baseline", metavar="SRC", type=Path,
+                        help="also measure the package in this source folder (an older "
+                             "version), after the current one")
+    parser.add_argument("--baseline-label", metavar="TEXT", default="baseline",
+                        help="how the page names the --baseline version")
     parser.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.in_process:
         return _compile_table(command, args.top)
-    with tempfile.TemporaryDirectory(prefix="precontour-compile-") as tmp:
-        lines = [f"Measured {datetime.datetime.now():%Y-%m-%d %H:%M} with "
-                 f"`benchmarks/bench_compile.py`: {_versions()}; {os.cpu_count()} cores "
-                 f"({platform.machine()}).", ""]
-        if not args.no_runs:
-            lines += _demo_runs(Path(tmp))
-        env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "numba-table"))
-        table = subprocess.run(
-            [sys.executable, __file__, "--in-process", "--top", str(args.top), "--",
-             *(command or ["demo", "--out", os.path.join(tmp, "table-demo")])],
-            env=env, check=True, capture_output=True, text=True).stdout
-        lines += table.split(_MARK, 1)[1].splitlines()  # (the demo's own output first)
-    text = "\n".join(lines) + "\n"
+    trees = [("this version", None)]
+    if args.baseline:
+        trees.append((args.baseline_label, args.baseline.resolve()))
+    lines = [f"Measured {datetime.datetime.now():%Y-%m-%d %H:%M} with "
+             f"`benchmarks/bench_compile.py`: {_versions()}; {os.cpu_count()} cores "
+             f"({platform.machine()}).", ""]
+    for label, source in trees:
+        env = dict(os.environ)
+        if source is not None:
+            env["PYTHONPATH"] = os.pathsep.join([str(source), env.get("PYTHONPATH", "")])
+            lines += [f"## {label} (`{source}`)", ""]
+        elif args.baseline:
+            lines += [f"## {label}", ""]
+        with tempfile.TemporaryDirectory(prefix="precontour-compile-") as tmp:
+            if not args.no_runs:
+                lines += _demo_runs(Path(tmp), env)
+            env["NUMBA_CACHE_DIR"] = os.path.join(tmp, "numba-table")
+            table = subprocess.run(
+                [sys.executable, __file__, "--in-process", "--top", str(args.top), "--",
+                 *(command or ["demo", "--out", os.path.join(tmp, "table-demo")])],
+                env=env, check=True, capture_output=True, text=True).stdout
+            lines += table.split(_MARK, 1)[1].splitlines() + [""]  # (after the demo's output)
+    text = "\n".join(lines)
     print(text, end="")
     if args.markdown:
-        args.markdown.write_text("# Compile time and the first run\n\n" + __doc__.split(
-            "\n\n")[1] + "\n\n" + text)
+        args.markdown.write_text("# Compile time and the first run\n\n"
+                                 + "\n\n".join(__doc__.split("\n\n")[1:3]) + "\n\n" + text)
     return 0
 
 
@@ -92,9 +109,9 @@ def _versions() -> str:
             f"{llvmlite.__version__}, numpy {numpy.__version__}")
 
 
-def _demo_runs(tmp: Path) -> list[str]:
+def _demo_runs(tmp: Path, env: dict) -> list[str]:
     """``precontour demo`` in fresh processes: once on an empty cache, then warm."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp / "numba-runs"))
+    env = dict(env, NUMBA_CACHE_DIR=str(tmp / "numba-runs"))
     rows = ["| run | wall (s) | CPU (s) | demo's own timer: compute + report (s) | "
             "load average before / after |", "|---|---:|---:|---:|---|"]
     for run in range(1 + WARM_RUNS):
