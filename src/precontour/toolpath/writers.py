@@ -23,11 +23,11 @@ from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
-from numba import njit
 
 from ..defaults import GCODE_TOL_LINEAR as DEFAULT_TOL_LINEAR
 from ..defaults import GCODE_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..errors import InputError
+from ..kernels import jit
 from ..machine.drives import AXES
 
 # DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default decimation tolerances (1 um on X, Y, Z,
@@ -131,7 +131,7 @@ def decimate(t: np.ndarray, q: np.ndarray, tolerance: np.ndarray,
     return np.flatnonzero(_decimate_scan(t, q, tolerance, must_keep))
 
 
-@njit(cache=True)
+@jit
 def _decimate_scan(t, q, tol, must_keep):  # pragma: no cover - compiled
     n, m = q.shape
     keep = np.zeros(n, dtype=np.bool_)
