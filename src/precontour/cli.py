@@ -387,6 +387,21 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--report", type=Path, default=None, metavar="DIR",
                      help="also write figures, the table and an index.html to DIR")
     run.set_defaults(run=run_run)
+
+    lcnc = commands.add_parser(
+        "linuxcnc-config", help="write a LinuxCNC configuration for running run's outputs",
+        description="Write a LinuxCNC configuration folder for the machine: INI with the "
+                    "machine file's limits (A, B, C in degrees) and servo period, HAL for "
+                    "the G-code path (joints looped back as in LinuxCNC's sims; the machine's "
+                    "kinematics module with its offsets on the LinuxCNC trunnion types, "
+                    "trivkins otherwise) and for the halstreamer stream, and a headless "
+                    "display. An existing folder is replaced only if it holds such a "
+                    "configuration.")
+    lcnc.add_argument("--machine", default="zhang2013",
+                      help="built-in machine name or machine TOML file (default: zhang2013)")
+    lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+                      help="configuration folder")
+    lcnc.set_defaults(run=run_linuxcnc_config)
     return parser
 
 
@@ -801,6 +816,18 @@ def run_run(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(f) for f in files[:4])}"
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def run_linuxcnc_config(args: argparse.Namespace) -> int:
+    from .toolpath.linuxcnc import check_config_folder, write_linuxcnc_config
+
+    check_config_folder(args.output)
+    machine = load_machine(args.machine)
+    files = write_linuxcnc_config(machine, args.output)
+    print(f"LinuxCNC configuration for {machine.name} ({len(files)} files) in {args.output}: "
+          f"linuxcnc {args.output / 'machine.ini'} runs G-code; halrun -I -f "
+          f"{args.output / 'stream.hal'} then halstreamer -c 0 FILE runs a --stream file")
     return 0
 
 
