@@ -57,13 +57,14 @@ STREAM_COLUMNS: tuple[str, ...] = ("j0", "j1", "j2", "j3", "j4", "underruns", "d
 RECORD_BUFFER_SECONDS = 20.0
 #: The motion controller's analog output that selects the kinematics (the sims' choice).
 SWITCHKINS_PIN = 3
-#: Planner settings of ``[TRAJ]``. The arc blends stay on (the planner's default, and what
-#: holds the timing where the rotary axes stand still); a lookahead of 200 blocks instead of
-#: LinuxCNC's 60 lets short blocks of a fast stretch plan their speeds far enough ahead.
+#: Planner settings of ``[TRAJ]``: LinuxCNC 2.9's defaults, written out. None of them changes
+#: how the planner blends blocks in which a rotary axis moves (tp.c makes neither blend arcs
+#: nor tangent blends with rotary motion, only parabolic blends); a lookahead of 200 blocks
+#: instead of 50 moved the 3+2 test program's 13.3 s by 2 ms (docs/linuxcnc.md).
 TRAJ_SETTINGS: Mapping[str, str] = {
     "ARC_BLEND_ENABLE": "1",
     "ARC_BLEND_FALLBACK_ENABLE": "0",
-    "ARC_BLEND_OPTIMIZATION_DEPTH": "200",
+    "ARC_BLEND_OPTIMIZATION_DEPTH": "50",
     "ARC_BLEND_GAP_CYCLES": "4",
     "ARC_BLEND_RAMP_FREQ": "100",
 }
