@@ -37,6 +37,7 @@ from typing import Mapping
 
 from ..errors import InputError, OutputError
 from ..machine.drives import LINEAR_AXES
+from ..machine.kinematics import XYZACTrunnion, XYZBCTrunnion
 
 #: The file that marks a folder as a configuration this module wrote (it may be replaced).
 MARKER = "machine.ini"
@@ -142,13 +143,12 @@ def _num(value: float) -> str:
 def _kinematics(machine) -> tuple[str, str, bool, list[str]]:
     """(module, loadrt line, tcp, HAL lines setting its parameters)."""
     kin = machine.kinematics
-    kind = type(kin).__name__
     coordinates = "".join(machine.axis_names)
-    if kind not in ("XYZACTrunnion", "XYZBCTrunnion"):
+    if not isinstance(kin, (XYZACTrunnion, XYZBCTrunnion)):
         return "trivkins", f"trivkins coordinates={coordinates}", False, []
-    module = "xyzac-trt-kins" if kind == "XYZACTrunnion" else "xyzbc-trt-kins"
-    offsets = (("y_offset", "y-offset") if kind == "XYZACTrunnion"
-               else ("x_offset", "x-offset"))
+    tilt_x = isinstance(kin, XYZACTrunnion)
+    module = "xyzac-trt-kins" if tilt_x else "xyzbc-trt-kins"
+    offsets = ("y_offset", "y-offset") if tilt_x else ("x_offset", "x-offset")
     lines = [f"setp {module}.{pin} {_num(getattr(kin, key))}"
              for key, pin in (("x_rot_point", "x-rot-point"), ("y_rot_point", "y-rot-point"),
                               ("z_rot_point", "z-rot-point"), offsets,

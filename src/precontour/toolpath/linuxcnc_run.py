@@ -34,8 +34,9 @@ from .linuxcnc import RECORD_COLUMNS, STREAM_COLUMNS
 #: The unprivileged user LinuxCNC runs as when this process is root.
 DEFAULT_USER = "lcnc"
 
-__all__ = ["Recording", "LinuxcncUnavailable", "linuxcnc_unavailable", "run_gcode",
-           "run_stream", "linuxcnc_user"]
+__all__ = ["BlockTiming", "LinuxcncFailed", "LinuxcncUnavailable", "Recording",
+           "block_timing", "linuxcnc_unavailable", "linuxcnc_user", "parse_run_gcode",
+           "read_record", "run_gcode", "run_stream"]
 
 
 class LinuxcncUnavailable(RuntimeError):
@@ -406,7 +407,9 @@ def block_timing(program_text: str, recording: Recording, *,
         normal = weighted[min(k + 2, len(weighted) - 1)] - weighted[k]
         if not np.any(normal):
             continue
-        s = (world[i:] - weighted[k + 1]) @ normal
+        # signed distance past the plane; round-off of a position that stands exactly on
+        # the end point counts as reaching it
+        s = (world[i:] - weighted[k + 1]) @ normal + 1e-9 * np.linalg.norm(normal)
         crossing = np.flatnonzero((s[:-1] < 0.0) & (s[1:] >= 0.0))
         if crossing.size == 0:
             continue
