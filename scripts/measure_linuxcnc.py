@@ -18,7 +18,7 @@ controller and the stream through halstreamer, and prints markdown tables:
 
 ``--long`` adds LinuxCNC's impeller (G-code timing, about 25 min) and boat (stream, 10 min;
 kinematics of the whole impeller and B-C boat, about 35 min). ``--out DIR`` keeps the
-per-block timing tables (CSV) and the programs.
+per-block timing tables (CSV), the recordings (npz) and the programs.
 """
 
 from __future__ import annotations
@@ -70,7 +70,9 @@ def timing_row(name: str, text: str, rec, out: Path | None, note: str = "",
     late = timing.late[timing.measured]
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        np.savetxt(out / f"{re.sub(r'[^a-z0-9]+', '-', name.lower())}-blocks.csv",
+        stem = re.sub(r"[^a-z0-9]+", "-", name.lower()).strip("-")
+        np.savez_compressed(out / f"{stem}-record.npz", sample=rec.sample, **rec.columns)
+        np.savetxt(out / f"{stem}-blocks.csv",
                    np.column_stack([timing.line, timing.programmed, timing.executed,
                                     timing.rotary]),
                    delimiter=",", header="line,programmed_s,executed_s,moves_rotary",
@@ -155,10 +157,14 @@ def stream_row(name: str, stream: Path, commands: Path, config: Path) -> str:
 
 
 def kinematics_row(machine_name: str, demo: str, lines: int, speedup: float,
-                   config: Path, work: Path) -> str:
+                   config: Path, work: Path, out: Path | None = None) -> str:
     machine = load_machine(machine_name)
     program = _head_with_dwells(DEMOS / demo, lines, work / demo, speedup)
     rec = run_gcode(config, program, timeout=7200)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(out / f"kinematics-{demo}-record.npz", sample=rec.sample,
+                            **rec.columns)
     joints = rec.joints
     world = np.column_stack([rec.columns[f"w{i}"] for i in range(5)])
     parsed = read_program(program, machine, tcp=True)
@@ -171,6 +177,8 @@ def kinematics_row(machine_name: str, demo: str, lines: int, speedup: float,
     for k, target in enumerate(targets):
         n = _stationary_point(world, at, target)
         if n is None:
+            print(f"  {demo}: programmed point {k} (line {parsed.line[last[k]]}) not found "
+                  "standing still", file=sys.stderr)
             continue
         found.append(joints[n + 4])
         want.append(expected[k])
@@ -290,8 +298,8 @@ def main() -> int:
         cases = [("linuxcnc-xyzac-trt", "impeller-7bl-xyzac.ngc", 10**6, 1.0),
                  ("linuxcnc-xyzbc-trt", "boat-xyzbc.ngc", 10**6, 1.0)]
     for machine_name, demo, lines, speedup in cases:
-        print(kinematics_row(machine_name, demo, lines, speedup, configs[machine_name], work),
-              flush=True)
+        print(kinematics_row(machine_name, demo, lines, speedup, configs[machine_name], work,
+                             out), flush=True)
     if out is not None:
         import shutil
 

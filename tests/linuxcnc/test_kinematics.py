@@ -32,10 +32,14 @@ _AXIS_WORD = re.compile(r"(?<![A-Z])[XYZABC]\s*[-+.0-9]")
 def _head_with_dwells(source, motion_lines: int, out, speedup: float):
     """The first ``motion_lines`` lines with axis words of ``source``, each followed by a
     dwell, then M2; feeds ``speedup`` times the programmed ones (the geometry is what
-    counts here, and LinuxCNC keeps within its limits whatever the feed)."""
+    counts here, and LinuxCNC keeps within its limits whatever the feed). Stops before a
+    move in machine coordinates (G53: the boat's last two lines), which precontour's reader
+    refuses."""
     kept, count = [], 0
     for line in source.read_text().splitlines():
         code = re.sub(r"\([^)]*\)", "", line).split(";")[0].upper()
+        if re.search(r"G0*53(?![0-9.])", code):
+            break
         if code.strip() in ("%", "") or re.match(r"\s*M(2|30)\b", code):
             continue
         line = re.sub(r"F\s*([0-9.]+)", lambda m: f"F{float(m.group(1)) * speedup:.6g}", code)

@@ -381,6 +381,30 @@ def parse_run_gcode(text: str, axis_names: str = "XYZAC"):
     return start, blocks
 
 
+#: How far past the previous block's end :func:`block_timing` looks for a block's end, s.
+SEARCH_SECONDS = 120.0
+#: Distance (mm; rotary joints weighted as :data:`_END_WEIGHTS`) from a block's end point
+#: within which a crossing of its plane counts, besides half the block's length.
+END_GATE = 0.05
+
+
+def _crossing(world, lo, hi, end, normal, gate, chunk=4096):
+    """Fractional sample in [lo, hi) where ``world`` first crosses the plane through ``end``
+    normal to ``normal`` (forwards) within ``gate`` of ``end``; None if it does not."""
+    eps = 1e-9 * np.linalg.norm(normal)  # a position exactly on the end point reaches it
+    start = lo
+    while start < hi - 1:
+        stop = min(hi, start + chunk + 1)
+        s = (world[start:stop] - end) @ normal + eps
+        for j in np.flatnonzero((s[:-1] < 0.0) & (s[1:] >= 0.0)):
+            frac = s[j] / (s[j] - s[j + 1])
+            point = world[start + j] + frac * (world[start + j + 1] - world[start + j])
+            if np.linalg.norm(point - end) <= gate:
+                return start + j + frac
+        start = stop - 1
+    return None
+
+
 def block_timing(program_text: str, recording: Recording, *,
                  axis_names: str = "XYZAC") -> BlockTiming:
     """Measure each block's executed end time against its programmed one (see
@@ -400,21 +424,22 @@ def block_timing(program_text: str, recording: Recording, *,
     t0 = begun[0]
     weighted = points * _END_WEIGHTS
     executed = np.full(len(blocks), np.nan)
+    reach = int(SEARCH_SECONDS / recording.ts)
     i = t0
     for k in range(len(blocks)):
         if kinds[k] != "G1":
             continue
+        end = weighted[k + 1]
         normal = weighted[min(k + 2, len(weighted) - 1)] - weighted[k]
         if not np.any(normal):
             continue
-        # signed distance past the plane; round-off of a position that stands exactly on
-        # the end point counts as reaching it
-        s = (world[i:] - weighted[k + 1]) @ normal + 1e-9 * np.linalg.norm(normal)
-        crossing = np.flatnonzero((s[:-1] < 0.0) & (s[1:] >= 0.0))
-        if crossing.size == 0:
+        # the plane is crossed elsewhere too where the path comes back: only a crossing near
+        # the end point counts (blends cut corners by far less than half a block)
+        gate = END_GATE + 0.5 * np.linalg.norm(end - weighted[k])
+        found = _crossing(world, i, min(world.shape[0], i + reach), end, normal, gate)
+        if found is None:
             continue
-        j = crossing[0]
-        executed[k] = (i + j - t0 + s[j] / (s[j] - s[j + 1])) * recording.ts
-        i += j
+        executed[k] = (found - t0) * recording.ts
+        i = int(found)
     return BlockTiming(line=lines, programmed=programmed, executed=executed, rotary=rotary,
                        ts=recording.ts)
