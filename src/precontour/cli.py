@@ -411,6 +411,22 @@ def build_parser() -> argparse.ArgumentParser:
     machines.add_argument("--template", choices=kinematics, metavar="TYPE",
                           help=f"kinematics type: {', '.join(kinematics)}")
     machines.set_defaults(run=run_machines)
+
+    lcnc = commands.add_parser(
+        "linuxcnc-config", help="write a LinuxCNC configuration for running run's outputs",
+        description="Write a LinuxCNC configuration folder for the machine: INI with the "
+                    "machine file's limits (A, B, C in degrees) and servo period, HAL for "
+                    "the G-code path (joints looped back as in LinuxCNC's sims; the machine's "
+                    "kinematics module with its offsets on the LinuxCNC trunnion types, "
+                    "trivkins otherwise) and for the halstreamer stream, and a headless "
+                    "display. An existing folder is replaced only if it holds such a "
+                    "configuration.")
+    lcnc.add_argument("--machine", required=True,
+                      help="built-in machine name or machine TOML file (`precontour machines` "
+                           "lists the built-in ones)")
+    lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+                      help="configuration folder")
+    lcnc.set_defaults(run=run_linuxcnc_config)
     return parser
 
 
@@ -982,6 +998,20 @@ def format_machines_table(machines) -> str:
         f"({', '.join(dict.fromkeys(m.kinematics for m in machines))}) to start your own "
         "from.", 99, break_on_hyphens=False)
     return "\n".join(lines)
+
+
+
+def run_linuxcnc_config(args: argparse.Namespace) -> int:
+    from .machine.machine_file import load_machine
+    from .toolpath.linuxcnc import check_config_folder, write_linuxcnc_config
+
+    check_config_folder(args.output)
+    machine = load_machine(args.machine)
+    files = write_linuxcnc_config(machine, args.output)
+    print(f"LinuxCNC configuration for {machine.name} ({len(files)} files) in {args.output}: "
+          f"linuxcnc {args.output / 'machine.ini'} runs G-code; halrun -I -f "
+          f"{args.output / 'stream.hal'} then halstreamer -c 0 FILE runs a --stream file")
+    return 0
 
 
 def _contour_line(errors) -> str:

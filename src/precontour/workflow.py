@@ -213,6 +213,7 @@ class RunResult:
     program: GcodeProgram
     tolerance: np.ndarray
     timings: dict = field(default_factory=dict)
+    stream: Path | None = None
 
     @property
     def commands(self) -> Trajectory:
@@ -289,7 +290,21 @@ class RunResult:
         lines.append(f"blocks written {self.program.n_blocks} (tolerance "
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")
+        lines.append(self.linuxcnc_line())
         return "\n".join(lines)
+
+    def linuxcnc_line(self) -> str:
+        """Which output to run on LinuxCNC, in one line (measured: docs/linuxcnc.md)."""
+        stream = str(self.stream) if self.stream is not None else "write it with --stream FILE"
+        rotary = " or ".join(self.machine.axis_names[3:])
+        moving, blocks = self.program.rotary_blocks, self.program.n_blocks
+        if moving:
+            return (f"for LinuxCNC: run the stream ({stream}); LinuxCNC 2.9's planner "
+                    f"stretches the {moving} of {blocks} G-code blocks that move {rotary} "
+                    "(docs/linuxcnc.md)")
+        return (f"for LinuxCNC: no G-code block moves {rotary}, and its planner keeps their "
+                f"timing at a steady feed; the stream ({stream}) keeps it everywhere "
+                "(docs/linuxcnc.md)")
 
 
 def _reduction(before: float, after: float) -> str:
@@ -415,7 +430,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     return RunResult(source=str(program), machine=machine_obj, controller=controller,
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
-                     program=program_text, tolerance=tolerance, timings=timings)
+                     program=program_text, tolerance=tolerance, timings=timings,
+                     stream=outputs.stream)
 
 
 def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
