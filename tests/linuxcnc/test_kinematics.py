@@ -17,6 +17,8 @@ from precontour import load_machine
 from precontour.toolpath import read_program
 from precontour.toolpath.linuxcnc_run import run_gcode
 
+from lcnc_fixtures import config, lcnc  # noqa: F401 (fixtures)
+
 #: mm and degrees: halsampler prints 6 decimals, so agreement shows at the nm level; the
 #: target is 1 um / 1 urad (5.7e-5 degrees).
 LINEAR_TOL = 1e-5

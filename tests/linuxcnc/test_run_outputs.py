@@ -9,6 +9,8 @@ import numpy as np
 from precontour.tables import read_trajectory
 from precontour.toolpath.linuxcnc_run import block_timing, run_gcode, run_stream
 
+from lcnc_fixtures import config, lcnc, paper_run, threeplus2_run  # noqa: F401 (fixtures)
+
 #: halsampler prints 6 decimals (mm, degrees): the rounding of a recorded value.
 PRINTED = 5.0000001e-7
 

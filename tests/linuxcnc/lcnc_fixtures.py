@@ -1,4 +1,5 @@
-"""LinuxCNC itself in the test suite: fixtures that write configurations with
+"""LinuxCNC itself in the test suite (imported by the tests of this folder; not a conftest.py,
+whose module name ``conftest`` would shadow tests/conftest.py for ``from conftest import``): fixtures that write configurations with
 ``precontour linuxcnc-config``'s library function and the outputs of ``run`` to run on it.
 
 Every test here needs LinuxCNC 2.9 (Debian: ``apt-get install linuxcnc-uspace``) and is
