@@ -13,7 +13,7 @@ controller and the stream through halstreamer, and prints markdown tables:
    G64 forms, the INI accelerations raised;
 3. the stream: samples, underruns, largest difference to the commands;
 4. kinematics: LinuxCNC's xyzac-trt-kins / xyzbc-trt-kins joints against the library's at
-   every programmed point and servo period of a TCP program (tests/linuxcnc/test_kinematics.py
+   every programmed point and servo period of a TCP program (tests/linuxcnc/test_linuxcnc_kinematics.py
    does the same on the programs' first lines).
 
 ``--long`` adds LinuxCNC's impeller (G-code timing, about 25 min) and boat (stream, 10 min;
