@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         env = dict(os.environ)
         if source is not None:
             env["PYTHONPATH"] = os.pathsep.join([str(source), env.get("PYTHONPATH", "")])
-            lines += [f"## {label} (`{source}`)", ""]
+            lines += [f"## {label}", ""]
         elif args.baseline:
             lines += [f"## {label}", ""]
         with tempfile.TemporaryDirectory(prefix="precontour-compile-") as tmp:
