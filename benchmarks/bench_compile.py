@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.in_process:
         return _compile_table(command, args.top)
-    trees = [("this version", None)]
+    trees = [("This version", None)]
     if args.baseline:
         trees.append((args.baseline_label, args.baseline.resolve()))
     lines = [f"Measured {datetime.datetime.now():%Y-%m-%d %H:%M} with "
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         env = dict(os.environ)
         if source is not None:
             env["PYTHONPATH"] = os.pathsep.join([str(source), env.get("PYTHONPATH", "")])
-            lines += [f"## {label} (`{source}`)", ""]
+            lines += [f"## {label}", ""]
         elif args.baseline:
             lines += [f"## {label}", ""]
         with tempfile.TemporaryDirectory(prefix="precontour-compile-") as tmp:

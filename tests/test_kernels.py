@@ -94,3 +94,24 @@ def test_every_kernel_module_has_a_compile_estimate():
     assert "precontour.prediction.contour" in modules
     assert modules <= set(kernels.COMPILE_SECONDS), modules - set(kernels.COMPILE_SECONDS)
     assert 0 <= kernels.compile_seconds_left() <= sum(kernels.COMPILE_SECONDS.values())
+
+
+def test_run_chunks_in_a_forked_child():
+    # the parent's pool threads do not exist in a fork: the child makes its own pool
+    import multiprocessing
+
+    out = np.zeros(64)
+    kernels.run_chunks(_fill, 64, out)            # the parent's pool exists now
+    context = multiprocessing.get_context("fork")
+    with context.Pool(1) as pool:
+        assert pool.apply_async(_fill_in_child).get(timeout=60) == 64.0
+
+
+def _fill(first, stop, out):
+    out[first:stop] = 1.0
+
+
+def _fill_in_child():
+    out = np.zeros(64)
+    kernels.run_chunks(_fill, 64, out)
+    return float(out.sum())

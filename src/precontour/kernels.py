@@ -124,6 +124,16 @@ _pool_size = 0
 _pool_lock = threading.Lock()
 
 
+def _forget_pool() -> None:
+    """In a forked child: the parent's pool threads do not exist there."""
+    global _pool, _pool_size, _pool_lock
+    _pool, _pool_size, _pool_lock = None, 0, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
 def run_chunks(kernel, n_chunks: int, *args, grain: int = 1) -> None:
     """``kernel(first, stop, *args)`` for consecutive ranges [first, stop) of chunk indices
     covering [0, n_chunks), on up to :func:`threads` threads (the caller's among them), each
@@ -142,6 +152,11 @@ def run_chunks(kernel, n_chunks: int, *args, grain: int = 1) -> None:
             _pool_size = workers - 1
         pool = _pool
     futures = [pool.submit(kernel, bounds[w], bounds[w + 1], *args) for w in range(1, workers)]
-    kernel(bounds[0], bounds[1], *args)
-    for future in futures:
-        future.result()
+    try:
+        kernel(bounds[0], bounds[1], *args)
+    finally:
+        # every chunk finishes (or fails) before the caller goes on, whatever happened here
+        errors = [future.exception() for future in futures]
+    for error in errors:
+        if error is not None:
+            raise error

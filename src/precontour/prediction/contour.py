@@ -43,7 +43,7 @@ _TIP, _ORIENTATION = 0, 1
 #: Samples per task of the compiled search.
 _CHUNK = 4096
 # The compiled helpers called per sample are inlined: a call that passes arrays costs two
-# atomic reference-count updates per array, which made the search 2-3 times slower. LLVM
+# atomic reference-count updates per array, which made the search about twice as slow. LLVM
 # inlines them (forceinline), not numba (inline="always"), which types and compiles a copy of
 # the helper at each call site: all of it inlined by numba, in a parallel loop, took 27 s to
 # compile, now 3 s. _distance is numba-inlined: called with a constant, it would be compiled
