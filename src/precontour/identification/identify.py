@@ -149,7 +149,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
     # The controller the drives run, for learning against the virtual machine with friction
     # (a tf loop has none), named only when every identified axis got its J, B and friction
     # from currents: learning against the base drives, whose J and B the log just showed to
-    # be off, makes compensation worse than the identified loops alone (README, measured).
+    # be off, makes compensation worse than the identified loops alone (docs/identification-measured.md).
     drives_controller = ctrl.base if is_closed_loop(ctrl) else ctrl.name
     if drives_controller is not None and drives_controller != name and set(physical) >= set(fits):
         table["base"] = drives_controller
