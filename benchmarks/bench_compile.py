@@ -177,7 +177,8 @@ def _compile_table(command: list[str], top: int) -> int:
     by_module = defaultdict(float)
     for name, seconds in rows:
         by_module[name.rsplit(".", 1)[0]] += seconds
-    print(f"{_MARK}`precontour {' '.join(command)}` in one process, numba cache empty: compile "
+    shown = " ".join("DIR" if arg.startswith(tempfile.gettempdir()) else arg for arg in command)
+    print(f"{_MARK}`precontour {shown}` in one process, numba cache empty: compile "
           f"CPU {sum(total.values()):.1f} s for {len(spent)} kernels "
           f"({sum(signatures.values())} signatures); process CPU {process_cpu:.1f} s "
           f"(user + sys), wall {wall:.1f} s, load average {os.getloadavg()[0]:.2f} at the "

@@ -28,7 +28,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 from numba.core import event
 
-__all__ = ["jit", "run_chunks", "NOTE", "compile_seconds_left", "threads"]
+__all__ = ["jit", "run_chunks", "NOTE", "before_note", "print_note", "compile_seconds_left",
+           "threads"]
 
 #: The line printed before the first kernel compiles; ``{seconds}`` is
 #: :func:`compile_seconds_left` rounded.
@@ -92,6 +93,21 @@ def compile_seconds_left() -> float:
                for module in total)
 
 
+#: Called before the note is printed, e.g. by a progress display that keeps an unfinished
+#: line on the terminal, to end it (weak references to bound methods or functions).
+before_note: list = []
+
+
+def print_note() -> None:
+    """Print :data:`NOTE` to stderr, after the :data:`before_note` callbacks."""
+    for ref in list(before_note):
+        callback = ref()
+        if callback is not None:
+            callback()
+    seconds = max(5, 5 * round(compile_seconds_left() / 5))
+    print(NOTE.format(seconds=seconds), file=sys.stderr, flush=True)
+
+
 class _Note(event.Listener):
     """Prints :data:`NOTE` when the first kernel of the package starts compiling."""
 
@@ -103,8 +119,7 @@ class _Note(event.Listener):
             if _noted:
                 return
             _noted = True
-        seconds = max(5, 5 * round(compile_seconds_left() / 5))
-        print(NOTE.format(seconds=seconds), file=sys.stderr, flush=True)
+        print_note()
 
     def on_end(self, ev):
         pass

@@ -207,6 +207,24 @@ def test_progress_line_streams():
     assert len(second.rstrip("\n")) == len(first)
 
 
+def test_compile_note_gets_a_line_of_its_own_under_a_progress_line(capsys):
+    from precontour import kernels
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Terminal()
+    line = ProgressLine(tty)
+    line(0, 2, "trajectory")
+    kernels.print_note()             # what the first compile prints, on stderr
+    line(1, 2, "predict")
+    line.close()
+    assert tty.getvalue().count("\n") == 2  # the updating line was ended before the note
+    assert tty.getvalue().split("\n")[1].startswith("\r[")
+    assert capsys.readouterr().err.startswith("precontour: note: compiling numerical kernels")
+
+
 @pytest.mark.parametrize("kwargs, error, match", [
     (dict(paths=("paper", "spiral")), InputError, "field 'paths': unknown built-in path 'spiral'"),
     (dict(paths=()), InputError, "no path to run"),

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import sys
 import time
+import weakref
 from typing import Callable, TextIO
 
+from .. import kernels
 from ..files import check_signals
 
 #: ``progress(done, total, message)``: called before each step (done = steps finished).
@@ -42,6 +44,9 @@ class ProgressLine:
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.start = time.perf_counter()
         self._width = 0
+        if self.tty:
+            # the note before the first compile goes on a line of its own, not after ours
+            kernels.before_note.append(weakref.WeakMethod(self.close))
 
     def __call__(self, done: int, total: int, message: str) -> None:
         check_signals()  # a step begins: where a SIGTERM or Ctrl-C stops the command
