@@ -348,21 +348,8 @@ class _Reader:
                 self.pending.append((self.row, prepared[1], raw))
                 return False
             prepared = self.prepared[pc] = self.prepare(raw, plain=False)
-            kind = prepared[0]
         self.flush()
-        if kind == _SKIP:
-            if prepared[1]:
-                self.skipped["/"] += 1
-            return False
-        if kind == _COMMENT:
-            self.passthrough.append((self.row, prepared[1]))
-            return False
-        if kind == _SETTINGS:
-            self.evaluate(prepared[1])
-            return False
-        _, code, traori, trafoof, text, comments = prepared
-        words = self.evaluate(code) if needs_macro_reader(code) else self.tokens(code)
-        return self.execute(words, traori, trafoof, text, comments)
+        return self._run_prepared(prepared)
 
     def prepare(self, raw: str, plain: bool = True):
         """What kind of line ``raw`` is, and what executing it needs."""
@@ -509,6 +496,11 @@ class _Reader:
     def general(self, raw: str) -> bool:
         """Execute one line word by word (every construct, every error)."""
         prepared = self.prepare(raw, plain=False)
+        return self._run_prepared(prepared)
+
+    def _run_prepared(self, prepared) -> bool:
+        """Act on a line as :meth:`prepare` classified it: skipped, kept as a comment, a
+        settings line, or words to execute (their result)."""
         kind = prepared[0]
         if kind == _SKIP:
             if prepared[1]:
