@@ -47,7 +47,7 @@ from precontour.toolpath.linuxcnc_run import (block_timing, linuxcnc_unavailable
 from precontour.trajectory.builtin_paths import builtin_path  # noqa: E402
 from precontour.workflow import RunOutputs, run_program, write_run_outputs  # noqa: E402
 
-from test_kinematics import DEMOS, _head_with_dwells, _stationary_point  # noqa: E402
+from test_linuxcnc_kinematics import DEMOS, _head_with_dwells, _stationary_point  # noqa: E402
 
 
 def run_outputs(source: Path, out: Path, machine: str, controller: str = "pid-high",
