@@ -271,9 +271,11 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
     limit (plain finite differences) and nowhere worse than uncompensated there. Where
     friction holds the axes at the stop is decided by nanometres: deciding on one exact
     machine, over 10 draws (:func:`conftest.nanometre_draws`) learning kept 0.013-0.051 of
-    the max; deciding on the ensemble of machines, 0.0132-0.0137 (the same learning as
-    ``test_learning_within_limits_keeps_them_and_shrinks_the_max``), hence the bound of 0.02
-    on the worst of :data:`conftest.FRICTION_DRAWS`."""
+    the max; deciding on the ensemble of machines, 0.0132-0.0137 with the newest dependency
+    versions and 0.0132-0.0165 on nine draws and 0.053 on one with the oldest allowed ones
+    (the same learning as ``test_learning_within_limits_keeps_them_and_shrinks_the_max``;
+    0.0132-0.0153 on the first five, which this test runs), hence the bound of 0.025 on the
+    worst of :data:`conftest.FRICTION_DRAWS`."""
     machine = load_machine("zhang2013")
     for draw, path in enumerate(nanometre_draws(builtin_path("paper"))):
         program = tmp_path / f"paper{draw}.csv"
@@ -291,7 +293,7 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
                 and "reduction" not in line}
         before, after = rows["simulated before"], rows["simulated after"]
         assert all(a <= b for a, b in zip(after, before))
-        assert after[0] <= 0.02 * before[0]
+        assert after[0] <= 0.025 * before[0]
         commands = read_trajectory(tmp_path / "cmd.csv")
         for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
             peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order
