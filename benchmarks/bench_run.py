@@ -51,8 +51,8 @@ def main(minutes: float = 18.0, controller: str = "pid-high") -> None:
             print(f"  [{time.perf_counter() - start:7.1f} s] {message}", flush=True)
 
         start = time.perf_counter()
-        result = run_program(program, outputs, controller=controller, progress=progress,
-                             workers=None)
+        result = run_program(program, outputs, machine="zhang2013", controller=controller,
+                             progress=progress, workers=None)
         computed = time.perf_counter() - start
         write_start = time.perf_counter()
         write_run_outputs(result, outputs, [program])

@@ -20,18 +20,23 @@ Paths: the built-in ones, and test paths whose stops and reversals differ from t
 the tool still turns; ``flank``, a flank path between two B-spline curves (tool from the lower
 to the upper curve); ``interior-stop``, a move that stops for 0.1 s halfway and then goes on.
 
-Run: ``python scripts/measure_compensation.py [--test-paths] [PATH ...] > docs/compensation.md``;
-its last section holds the README's two tables in the README's format.
+Run: ``python scripts/measure_compensation.py --test-paths --output docs/compensation.md``
+(without ``--output`` the page goes to stdout); its last section holds the two summary tables.
+The page is stamped with the date, the versions and the computer (``docpage.stamp``).
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
+from docpage import stamp, write_page
 from precontour import load_machine
 from precontour.compensation.precompensate import compensate
 from precontour.compensation.stops import DEFAULT_LEARNING_PASSES, final_rest_index
@@ -202,13 +207,16 @@ def main(paths: list[str]) -> None:
                 f"**{cell[('realistic', '1 + learning')]}** | "
                 + " | ".join(f"{cell[(m, '1')]}; {cell[(m, '1 + learning')]}"
                              for m in ("J,B +20 %", "J,B -20 %")) + " |")
-    print("# Measured contour-error reductions\n")
-    print("Output of `python scripts/measure_compensation.py --test-paths > "
-          "docs/compensation.md` (virtual machine; tip in um, orientation in mrad; passes 0 = "
+    print("# Compensation, measured\n")
+    print(stamp() + f" ({time.perf_counter() - start:.0f} s.)\n")
+    print("Written by `scripts/measure_compensation.py`; do not edit by hand. What the "
+          "compensation and the learning do: [learning](learning.md). "
+          "Contour errors on the virtual machine ([method](method.md#the-virtual-machine)): "
+          "tip in um, orientation in mrad; passes 0 = "
           "uncompensated, 'up to 4' = iterated linear passes, '1 + learning' = one linear pass and "
           f"{DEFAULT_LEARNING_PASSES} learning passes against the realistic machine, "
-          "`compensate --ignore-limits --learn`, every choice on the worst of the five draws of "
-          "the machine ensemble, with the command kept). Test paths: "
+          "`compensate --ignore-limits --learn`, every choice on the worst of the five draws "
+          "of the machine ensemble, with the command kept. Test paths: "
           f"{', '.join(TEST_PATHS)} (see the script).\n")
     print("| path | controller | machine | passes | tip max um | tip mean um | ori max mrad "
           "| ori mean mrad | reduction tip max / mean % | reduction ori max / mean % |")
@@ -220,7 +228,7 @@ def main(paths: list[str]) -> None:
           "| learning kept | learning cost |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(places))
-    print("\n## The README's tables\n")
+    print("\n## Summary\n")
     print("Reductions of the max / mean contour errors, tip then orientation, in %:\n")
     print("| path | controller | exact model, 1 pass | exact, up to 4 passes (passes kept) "
           "| realistic machine, 1 pass | realistic, 1 pass + learning (default) "
@@ -236,7 +244,19 @@ def main(paths: list[str]) -> None:
 
 if __name__ == "__main__":
     args = sys.argv[1:]
+    output = None
+    if "--output" in args:
+        at = args.index("--output")
+        output = Path(args[at + 1])
+        del args[at:at + 2]
     chosen = [a for a in args if not a.startswith("--")]
     if not chosen:
         chosen = list(BUILTIN_PATHS) + (list(TEST_PATHS) if "--test-paths" in args else [])
-    main(chosen)
+    if output is None:
+        main(chosen)
+    else:
+        # the page is written whole at the end: a failed run leaves the old one
+        page = io.StringIO()
+        with contextlib.redirect_stdout(page):
+            main(chosen)
+        print(f"wrote {write_page(output, page.getvalue())}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""Measure identification on a hidden plant (README, "Calibrating to your machine").
+"""Measure identification on a hidden plant (docs/identification-measured.md).
 
 The hidden plant is zhang2013 with each drive's J and B changed by 20-30 % (factors below),
 run by the virtual machine as the realistic machine (discrete controller at 1 kHz, Stribeck
@@ -21,17 +21,25 @@ the log:
   themselves (no friction: what compensate does when the log had no currents); with
   ``--quantize`` also against the hidden plant with its quantised encoder.
 
+Prints the results as Markdown; ``--output docs/identification-measured.md`` writes them as
+that page's section for the chosen options (one section per combination of options, each
+stamped with the date, the versions and the computer; the other sections stay).
+
 Usage: python scripts/measure_identification.py [--controller pid-high] [--quantize] [--learn 4]
-       [--friction-mismatch] [--paths circle,cone,fan,paper]
+       [--friction-mismatch] [--paths circle,cone,fan,paper] [--output PAGE]
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+from docpage import markdown_table, replace_section, stamp
 
 from precontour import (ReferencePath, builtin_path, compensate, contour_errors, generate_trajectory,
                         load_machine, simulate)
@@ -47,6 +55,16 @@ J_FACTORS = (1.25, 0.75, 1.3, 0.8, 1.2)
 B_FACTORS = (0.75, 1.3, 0.7, 1.25, 1.3)
 PATHS = ("circle", "cone", "fan", "paper")
 
+
+#: Column headers of the compensation tables, by case.
+HEADERS = {"identified": "identified, 1 pass", "nominal": "nominal, 1 pass",
+           "plant": "plant's model, 1 pass",
+           "identified + learning on identified": "**identified + learning**",
+           "identified + learning on nominal": "learning on nominal drives",
+           "identified + learning on plant": "learning on the hidden plant",
+           "identified + learning on identified tf": "learning on the `tf` loops",
+           "identified + learning on plant with its encoder":
+               "learning on the hidden plant with its encoder"}
 
 #: ``--friction-mismatch``: the plant's friction levels and Stribeck speeds differ from the
 #: base machine's too; identify takes the Stribeck speeds W1, W2 from the base machine, so the
@@ -75,6 +93,26 @@ def motor_currents(sim, q, machine) -> np.ndarray:
     return ka * sim.u + tff / kt
 
 
+INTRO = """# Identification, measured
+
+How well [identification](identification.md) works, on a hidden plant: zhang2013 with each
+drive's J and B changed by 20-30 % (J x1.25 / 0.75 / 1.3 / 0.8 / 1.2 and B x0.75 / 1.3 / 0.7 /
+1.25 / 1.3 on X / Y / Z / A / C), run as the realistic virtual machine (discrete controller at
+1 kHz, Stribeck friction with stick-slip, friction feed-forward). The log is the 107 s
+excitation of `precontour excite` with the motor currents (the controller's output plus the
+feed-forward torque, over kt); the identified machine is then evaluated on the built-in paths,
+none of which is in the log. "plant" is the hidden plant's own continuous linear model (perfect
+J and B): the best a linear model of the loop can do; "nominal" is the base machine's.
+
+Written by `scripts/measure_identification.py --output docs/identification-measured.md`, one
+section per combination of its options (controller, learning passes, `--quantize`: a 0.1 um /
+1 urad encoder on the plant, `--friction-mismatch`: the plant's static friction x1.2, Coulomb
+x0.85 and Stribeck speeds x1.5, so that the identified friction law has the wrong shape), each
+stamped; do not edit by hand. Targets: each axis's tracking error predicted within about 10 %
+of max\\|e\\|; at least 90 % of the mean and 80 % of the max tool-tip contour error removed on
+the hidden plant."""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--controller", default="pid-high")
@@ -87,7 +125,11 @@ def main() -> None:
     parser.add_argument("--friction-mismatch", action="store_true",
                         help="the plant's friction differs from the base machine's: static "
                              "levels x1.2, Coulomb x0.85, Stribeck speeds x1.5")
+    parser.add_argument("--output", type=Path, default=None, metavar="PAGE",
+                        help="write the results as this page's section for these options "
+                             "(e.g. docs/identification-measured.md); default: print them")
     args = parser.parse_args()
+    out = []
     base = load_machine("zhang2013")
     plant = hidden_plant(base, args.friction_mismatch)
     res = np.array([1e-4] * 3 + [1e-6] * 2) if args.quantize else None
@@ -108,19 +150,25 @@ def main() -> None:
     t_id = time.perf_counter() - start - t_sim
     identified = result.machine
     drives_controller = identified.controller(result.name).base or args.controller
-    print(f"controller {args.controller}, quantized {args.quantize}, friction mismatch "
-          f"{args.friction_mismatch}: excitation {exc.duration:.1f} s "
-          f"({exc.n_samples} samples), simulated in {t_sim:.1f} s, identified in {t_id:.1f} s; "
-          f"tf base controller {drives_controller}")
-    for axis, fit in result.axes.items():
-        print(f"  {axis}: order {fit.order}, fit {fit.fit_pct:.2f} %, held-out {fit.holdout_pct:.2f} %")
-    print("identified / hidden plant: J B Ts+ Tc+ Ts- Tc-")
-    for axis, p in result.physical.items():
-        true = plant.drive(axis)
-        ratios = [p.J / true.J, p.B / true.B] + [getattr(p.friction, k) / getattr(true.friction, k)
-                                                 for k in ("Ts_pos", "Tc_pos", "Ts_neg", "Tc_neg")]
-        print(f"  {axis}: " + " ".join(f"{r:.4f}" for r in ratios)
-              + f"  (torque fit {p.torque_fit_pct:.2f} %, {p.windows} windows)")
+    out.append(f"Excitation {exc.duration:.1f} s ({exc.n_samples:,} samples), simulated on the "
+               f"hidden plant in {t_sim:.1f} s, identified in {t_id:.1f} s; the `tf` "
+               f"controller's base: {drives_controller}.\n")
+    out.append("Fit of the `tf` loops on the log, % of max\\|e\\|:\n")
+    out.append(markdown_table(["axis", "order", "fit %", "held-out %"],
+                              [[axis, fit.order, f"{fit.fit_pct:.2f}", f"{fit.holdout_pct:.2f}"]
+                               for axis, fit in result.axes.items()], "lrrr"))
+    if result.physical:
+        out.append("\nIdentified / hidden plant, from the motor currents (1 = exact):\n")
+        rows = []
+        for axis, p in result.physical.items():
+            true = plant.drive(axis)
+            ratios = [p.J / true.J, p.B / true.B] + [
+                getattr(p.friction, k) / getattr(true.friction, k)
+                for k in ("Ts_pos", "Tc_pos", "Ts_neg", "Tc_neg")]
+            rows.append([axis] + [f"{r:.4f}" for r in ratios]
+                        + [f"{p.torque_fit_pct:.2f}", p.windows])
+        out.append(markdown_table(["axis", "J", "B", "Ts+", "Tc+", "Ts-", "Tc-",
+                                   "torque fit %", "windows"], rows, "lrrrrrrrr"))
     # "plant": the hidden plant's own continuous linear model (what a perfect J, B would give).
     models = {"identified": result.identified_models(),
               "nominal": base.controller(args.controller).error_models(base.drives),
@@ -130,8 +178,7 @@ def main() -> None:
                 "identified tf": identified}
     if res is not None:
         learning["plant with its encoder"] = plant
-    print("\nprediction error, max|e_pred - e| in % of max|e| per axis X Y Z A C")
-    comp_rows = []
+    prediction_rows, comp_rows = [], []
     for name in args.paths.split(","):
         traj = generate_trajectory(builtin_path(name), base)
         truth = simulate(traj.t, traj.q, plant, args.controller, **run)
@@ -142,13 +189,13 @@ def main() -> None:
         predictions = {label: predict_tracking_of(traj, mods) for label, mods in models.items()}
         predictions["physical"] = simulate(traj.t, traj.q, identified, drives_controller,
                                            **REALISTIC).e
-        line = [f"{name:7s}"]
-        for label, ep in predictions.items():
-            pct = 100 * np.abs(ep - e).max(axis=0) / np.where(moving, peak, np.nan)
+        row = [name]
+        for label in ("identified", "physical", "nominal", "plant"):
+            pct = 100 * np.abs(predictions[label] - e).max(axis=0) / np.where(moving, peak, np.nan)
             digits = 2 if label == "physical" else 1
-            line.append(f"{label} " + " ".join("  -  " if not np.isfinite(p) else f"{p:5.{digits}f}"
-                                                for p in pct))
-        print(" | ".join(line), " (max|e| um/mrad " + " ".join(f"{1e3 * p:.1f}" for p in peak) + ")")
+            row.append(" / ".join("-" if not np.isfinite(p) else f"{p:.{digits}f}" for p in pct))
+        row.append(" / ".join(f"{1e3 * p:.1f}" for p in peak))
+        prediction_rows.append(row)
         reference = ReferencePath.from_trajectory(traj)
         before = contour_errors(reference, truth.q_act, base.kinematics).summary()
         cases = [(label, mods, None) for label, mods in models.items()]
@@ -172,13 +219,66 @@ def main() -> None:
                    ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad")}
             kept = "" if comp.learning is None else f", kept {comp.learning.chosen}"
             comp_rows.append((name, label, before, after, red, kept))
-    print(f"\ncontour-error reduction on the hidden plant, %: tip max / mean, orientation max / "
-          f"mean (one linear pass; learning: {args.learn} passes)")
-    for name, label, before, after, red, kept in comp_rows:
-        print(f"{name:7s} {label:36s} {red['tip_max_um']:6.1f} / {red['tip_mean_um']:5.1f}, "
-              f"{red['ori_max_mrad']:6.1f} / {red['ori_mean_mrad']:5.1f}   (tip max {before['tip_max_um']:.2f} -> "
-              f"{after['tip_max_um']:.2f} um, mean {before['tip_mean_um']:.2f} -> "
-              f"{after['tip_mean_um']:.3f} um{kept})")
+    out.append("\n**Prediction**: max\\|e_predicted - e\\| in % of max\\|e\\| per axis "
+               "X / Y / Z / A / C (\"-\": the axis barely moves); \"identified physical\" "
+               "simulates the identified J, B and friction with the base controller:\n")
+    out.append(markdown_table(["path", "identified `tf`", "identified physical (simulated)",
+                               "nominal (J, B off)", "plant's linear model",
+                               "max\\|e\\| um / mrad"], prediction_rows))
+    labels = list(dict.fromkeys(label for _, label, *_ in comp_rows))
+    paths = list(dict.fromkeys(name for name, *_ in comp_rows))
+    cell = {(name, label): (red, before, after, kept)
+            for name, label, before, after, red, kept in comp_rows}
+    for title, keys in (("tool-tip", ("tip_max_um", "tip_mean_um")),
+                        ("orientation", ("ori_max_mrad", "ori_mean_mrad"))):
+        out.append(f"\n**Compensation** on the hidden plant: reduction of the {title} contour "
+                   f"error, max / mean, % (one linear pass with each model; learning: "
+                   f"{args.learn} passes after the identified model's pass):\n")
+        rows = [[name] + [f"{cell[name, label][0][keys[0]]:.1f} / "
+                          f"{cell[name, label][0][keys[1]]:.1f}" for label in labels]
+                for name in paths]
+        out.append(markdown_table(["path"] + [HEADERS.get(label, label) for label in labels],
+                                  rows))
+    out.append("\nLearning kept, and the tip errors before and after (um), with the identified "
+               "model and learning on the identified drives:\n")
+    label = "identified + learning on identified"
+    out.append(markdown_table(
+        ["path", "kept", "tip max before / after", "tip mean before / after"],
+        [[name, cell[name, label][3].removeprefix(", kept ") or "-",
+          f"{cell[name, label][1]['tip_max_um']:.2f} / {cell[name, label][2]['tip_max_um']:.2f}",
+          f"{cell[name, label][1]['tip_mean_um']:.2f} / {cell[name, label][2]['tip_mean_um']:.3f}"]
+         for name in paths]))
+    # the targets: prediction within 10 % on every moving axis; compensation with the
+    # identified model and learning removing >= 90 % of the mean and >= 80 % of the max tip error
+    met_prediction = {label: sum(all(v == "-" or float(v) <= 10 for v in row[1 + i].split(" / "))
+                                 for row in prediction_rows)
+                      for i, label in enumerate(("identified tf", "identified physical"))}
+    met_comp = [name for name in paths
+                if cell[name, label][0]["tip_mean_um"] >= 90 and cell[name, label][0]["tip_max_um"] >= 80]
+    out.append(f"\nTargets (each axis's tracking error predicted within 10 % of max\\|e\\|; "
+               f"90 % of the mean and 80 % of the max tip contour error removed): prediction "
+               f"met on {met_prediction['identified physical']} of {len(prediction_rows)} paths "
+               f"by the identified physical model and on {met_prediction['identified tf']} by "
+               f"the identified `tf`; compensation with the identified model and learning met "
+               f"on {len(met_comp)} of {len(paths)} paths"
+               + (f" (not on {', '.join(n for n in paths if n not in met_comp)})."
+                  if len(met_comp) < len(paths) else "."))
+    options = [f"controller {args.controller}",
+               f"learning {args.learn} pass" + ("" if args.learn == 1 else "es")]
+    if args.quantize:
+        options.append("quantised encoder (0.1 um / 1 urad)")
+    if args.friction_mismatch:
+        options.append("friction mismatch")
+    key = "-".join([args.controller, f"learn{args.learn}"]
+                   + (["quantize"] if args.quantize else [])
+                   + (["friction-mismatch"] if args.friction_mismatch else []))
+    body = "\n".join([f"## {', '.join(options).capitalize()}", "", stamp(), ""] + out)
+    if args.output is None:
+        print(body)
+    else:
+        replace_section(args.output, "intro", INTRO)
+        print(f"wrote {replace_section(args.output, key, body)} (section {key})",
+              file=sys.stderr)
 
 
 def predict_tracking_of(traj, models) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Peak memory per trajectory sample of each command (sets trajectory.generate.BYTES_PER_SAMPLE).
+"""Peak memory per trajectory sample of each command (precontour.defaults.BYTES_PER_SAMPLE).
 
 Runs each command in a fresh process on the built-in ``paper`` path planned at two feeds (so
 at two sample counts) and reports the growth of the peak resident set size per extra sample:

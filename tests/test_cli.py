@@ -194,7 +194,8 @@ def test_compensate_keeps_the_limits_so_export_takes_its_output(tmp_path, capsys
         commands = read_trajectory(out)
         jerk = np.abs(np.diff(commands.q, 3, axis=0)).max(axis=0) / commands.ts ** 3
         assert np.all(jerk <= limits["j_max"] * (1 + 1e-9)) == keeps
-        code = main(["export", str(out), "-o", str(tmp_path / f"out{len(options)}.ngc")])
+        code = main(["export", str(out), "--machine", "zhang2013", "-o",
+                     str(tmp_path / f"out{len(options)}.ngc")])
         assert code == (0 if keeps else 2)
         printed = capsys.readouterr()
         assert ("slowed in" in printed.out) == keeps
@@ -207,3 +208,180 @@ def test_module_entry_point(traj_csv, tmp_path):
     result = subprocess.run([sys.executable, "-m", "precontour", "predict", str(traj_csv), "-o",
                              str(tmp_path / "p.csv")], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
+
+
+# --------------------------------------------------------------------------------------------
+# Start-up, discoverability and the options shared between commands
+# --------------------------------------------------------------------------------------------
+
+HEAVY = ("numpy", "scipy", "numba", "llvmlite", "matplotlib", "pyarrow")
+COMMANDS = ("predict", "trajectory", "compensate", "simulate", "demo", "compare", "identify",
+            "excite", "export", "run", "machines")
+
+
+def test_help_imports_no_numerical_library():
+    """`precontour --help` as a user runs it: ``-X importtime`` lists every module imported."""
+    import subprocess
+    import sys
+    result = subprocess.run([sys.executable, "-X", "importtime", "-m", "precontour", "--help"],
+                            capture_output=True, text=True)
+    assert result.returncode == 0 and "commands:" in result.stdout, result.stderr
+    imported = {line.split("|")[-1].strip() for line in result.stderr.splitlines()
+                if line.startswith("import time:")}
+    assert "precontour.cli" in imported
+    assert not {name for name in imported if name.split(".")[0] in HEAVY}
+
+
+def test_every_help_and_version_import_no_numerical_library():
+    import subprocess
+    import sys
+    # every command the parser has, also those added later
+    code = ("import sys\nfrom precontour.cli import build_parser, main\n"
+            "commands = [a for a in build_parser()._actions if hasattr(a, 'choices') and "
+            "isinstance(a.choices, dict)][0].choices\n"
+            f"assert set(commands) >= set({COMMANDS!r}), sorted(commands)\n"
+            "for argv in [['--version'], ['--help']] + [[c, '--help'] for c in commands]:\n"
+            "    try:\n        main(argv)\n    except SystemExit as exc:\n"
+            "        assert exc.code == 0, argv\n"
+            f"print(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r}))\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-1] == "[]"
+    assert "precontour 0.1.0" in result.stdout
+
+
+def test_the_package_imports_its_public_names_when_first_used():
+    import subprocess
+    import sys
+    code = ("import sys, precontour\nassert 'numpy' not in sys.modules\n"
+            "assert precontour.load_machine('zhang2013').name == 'zhang2013'\n"
+            "assert set(precontour.__all__) <= set(dir(precontour))\n"
+            "try:\n    precontour.nonexistent\nexcept AttributeError as exc:\n"
+            "    print(exc)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "has no attribute 'nonexistent'" in result.stdout
+
+
+@pytest.mark.parametrize("argv, missing", [
+    (["run", "p.ngc", "-o", "o.ngc"], "--machine, --controller"),
+    (["run", "p.ngc", "--machine", "zhang2013", "-o", "o.ngc"], "--controller"),
+    (["run", "p.ngc", "--controller", "pid-low", "-o", "o.ngc"], "--machine"),
+    (["export", "c.csv", "-o", "o.ngc"], "--machine"),
+])
+def test_run_and_export_have_no_default_machine(argv, missing, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith(f"precontour {argv[0]}: error: the following arguments are required: "
+                          f"{missing}; `precontour machines` lists the built-in machines "
+                          "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt) and their "
+                          "controllers"), err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_other_commands_keep_their_default_machine():
+    from precontour.cli import build_parser
+    parser = build_parser()
+    for argv in (["predict", "t.csv", "-o", "p.csv"], ["compensate", "t.csv", "-o", "c.csv"],
+                 ["simulate", "t.csv", "-o", "s.csv"], ["trajectory", "t.csv", "-o", "o.csv"],
+                 ["compare"], ["identify", "log.csv", "-o", "m.toml"], ["excite", "-o", "e.csv"]):
+        args = parser.parse_args(argv)
+        assert args.machine == "zhang2013", argv
+        assert getattr(args, "controller", "pid-low") == "pid-low", argv
+    assert parser.parse_args(["export", "c.csv", "--machine", "m.toml", "-o", "o.ngc"]
+                             ).controller == ""
+
+
+def test_run_and_export_help_list_the_builtin_machines(capsys):
+    from precontour.defaults import builtin_machines
+    for command in ("run", "export"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        for machine in builtin_machines():
+            assert f"{machine.name} ({machine.kinematics}, axes {''.join(machine.axes)}; " \
+                   f"controllers {', '.join(name for name, _ in machine.controllers)})" in text
+        assert "precontour machines" in text
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "G-code in machine axes" not in text and "tool centre point mode" in text
+    assert "--corner-tol MM" in text and "--dwell S" in text and "--max-samples N" in text
+
+
+@pytest.mark.parametrize("command, default", [("demo", "precontour-demo"),
+                                              ("compare", "precontour-compare")])
+def test_report_folder_is_report_with_out_kept(command, default, capsys):
+    from pathlib import Path
+
+    from precontour.cli import build_parser
+    parser = build_parser()
+    assert parser.parse_args([command]).report == Path(default)
+    assert parser.parse_args([command, "--report", "r1"]).report == Path("r1")
+    assert parser.parse_args([command, "--out", "r2"]).report == Path("r2")
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    assert "--report DIR, --out DIR" in capsys.readouterr().out
+
+
+def test_planning_options_are_the_same_in_trajectory_and_run(capsys):
+    from precontour.cli import build_parser
+    parser = build_parser()
+    base = {"trajectory": ["trajectory", "p.ngc", "-o", "t.csv"],
+            "run": ["run", "p.ngc", "--machine", "zhang2013", "--controller", "pid-low",
+                    "-o", "o.ngc"]}
+    names = ("tcp", "dwell", "corner_tol", "max_samples")
+    defaults = {c: {n: getattr(parser.parse_args(argv), n) for n in names}
+                for c, argv in base.items()}
+    assert defaults["trajectory"] == defaults["run"] == {
+        "tcp": False, "dwell": 0.2, "corner_tol": 0.01, "max_samples": None}
+    given = ["--tcp", "--dwell", "0.5", "--corner-tol", "0.05", "--max-samples", "1000"]
+    for argv in base.values():
+        args = parser.parse_args(argv + given)
+        assert (args.tcp, args.dwell, args.corner_tol, args.max_samples) == (True, 0.5, 0.05,
+                                                                            1000)
+    for option, bad, message in (("--dwell", "-1", "must be a number >= 0, got '-1'"),
+                                 ("--corner-tol", "0", "must be a positive number, got '0'"),
+                                 ("--max-samples", "0", "must be >= 1, got '0'"),
+                                 ("--max-samples", "1.5", "not a whole number: '1.5'")):
+        errors = []
+        for command, argv in base.items():
+            with pytest.raises(SystemExit):
+                parser.parse_args(argv + [option, bad])
+            errors.append(capsys.readouterr().err.strip().splitlines()[-1])
+        assert errors[0] == f"precontour trajectory: error: argument {option}: {message}"
+        assert errors[1] == f"precontour run: error: argument {option}: {message}"
+
+
+def test_run_plans_as_trajectory_does(tmp_path, capsys):
+    """``run``'s planned duration is that of ``trajectory`` with the same planning options,
+    and the options change it (a square: its corners are blended within --corner-tol)."""
+    import re
+    program = tmp_path / "square.ngc"
+    program.write_text("G21 G90 G94\nG0 X0 Y0 Z300 A0 C0\nG1 X20 F3000\nG1 Y20\nG1 X0\nG1 Y0\n"
+                       "M2\n")
+    durations = {}
+    for options in ([], ["--corner-tol", "0.2", "--dwell", "0.5"]):
+        out = tmp_path / f"t{len(options)}.csv"
+        assert main(["trajectory", str(program), *options, "-o", str(out)]) == 0
+        t = read_columns(out, ["t"])["t"]
+        assert main(["run", str(program), "--machine", "zhang2013", "--controller", "pid-low",
+                     *options, "-o", str(tmp_path / f"o{len(options)}.ngc")]) == 0
+        printed = capsys.readouterr().out
+        planned = float(re.search(r"\(planned ([\d.]+) s", printed).group(1))
+        assert planned == pytest.approx(t[-1] - t[0], abs=1e-3)
+        durations[len(options)] = planned
+    # the larger dwell adds 0.3 s; the larger corner tolerance takes the corners faster
+    assert durations[4] != pytest.approx(durations[0] + 0.3, abs=1e-3)
+    assert main(["run", str(program), "--machine", "zhang2013", "--controller", "pid-low",
+                 "--max-samples", "100", "-o", str(tmp_path / "x.ngc")]) == 2
+    assert "more than 100" in capsys.readouterr().err
+
+
+def test_machines_template_is_refused_for_unknown_types(capsys):
+    with pytest.raises(SystemExit):
+        main(["machines", "--template", "nope"])
+    assert "invalid choice: 'nope'" in capsys.readouterr().err

@@ -9,7 +9,8 @@ import precontour
 
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
-STAGES = ("errors", "files", "piecewise", "machine", "toolpath", "trajectory", "tables",
+STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory",
+          "tables",
           "prediction", "compensation", "simulation", "identification", "workflow", "reports",
           "cli")
 

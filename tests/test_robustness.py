@@ -551,3 +551,422 @@ def test_fuzz_column_files_with_arbitrary_columns(tmp_path_factory, columns, suf
         pq.write_table(table, path)
     _reads_cleanly(lambda p: read_trajectory(p, kinematics=MACHINE.kinematics), path,
                    path.read_bytes())
+
+
+# --------------------------------------------------------------------------------------------
+# run, export, excite and identify: outputs as one set, inputs safe from reports, sizes and
+# limits checked first, signals between stages
+
+
+import re  # noqa: E402
+import signal  # noqa: E402
+
+#: A short G-code program: run takes a second or two on it.
+_SMALL_NC = "G21 G90 G94\nG0 X0 Y0 Z300 A0 C0\nG1 X10 Y5 F1200\nG1 X20 A2 C5\nM2\n"
+
+
+#: run and export name the machine (and run the controller).
+_MC = ["--machine", "zhang2013", "--controller", "pid-low"]
+
+
+@pytest.fixture
+def small(work):
+    (work / "small.ngc").write_text(_SMALL_NC)
+    return work / "small.ngc"
+
+
+def _first_err_line(capsys):
+    err = capsys.readouterr().err
+    return err.splitlines()[0] if err else "", err
+
+
+def test_run_report_never_overwrites_the_machine_file(work, small, capsys):
+    (work / "R").mkdir()
+    shutil.copy(work / "m.toml", work / "R" / "summary.txt")
+    line = fails_cleanly(["run", "small.ngc", "--machine", "R/summary.txt", "--controller", "pid-low",
+                          "--report", "R", "-o", "out.ngc"],
+                         r"R/summary.txt: refusing to overwrite an input file", work, capsys)
+    assert "%]" not in line
+
+
+def test_identify_report_never_overwrites_the_machine_file(work, capsys):
+    t = np.arange(200) * 1e-3
+    _write_rows(work / "log.csv", {"t": t, "X": np.sin(t), "X_act": np.sin(t) - 1e-4})
+    (work / "R").mkdir()
+    shutil.copy(work / "m.toml", work / "R" / "index.html")
+    fails_cleanly(["identify", "log.csv", "--machine", "R/index.html", "--report", "R",
+                   "-o", "out.toml"],
+                  r"R/index.html: refusing to overwrite an input file", work, capsys)
+
+
+def test_run_report_index_that_is_a_folder_fails_before_computing(work, small, capsys):
+    (work / "R" / "index.html").mkdir(parents=True)
+    fails_cleanly(["run", "small.ngc", *_MC, "--report", "R", "-o", "out.ngc"],
+                  r"R/index.html: is an existing folder", work, capsys)
+    assert list((work / "R").iterdir()) == [work / "R" / "index.html"]
+
+
+def _old_outputs(work):
+    for name in ("A.ngc", "s.txt", "c.csv"):
+        (work / name).write_text(f"old {name}\n")
+    return ["-o", "A.ngc", "--stream", "s.txt", "--commands", "c.csv"]
+
+
+def test_run_on_a_full_disk_keeps_every_old_output(work, small, capsys, monkeypatch):
+    """The halstreamer file cannot be written: the program (written before it) must not
+    replace the old one either."""
+    import precontour.files as files
+    real = files._write_temporary
+
+    def full(path, content):
+        if path.name == "s.txt":
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path, content)
+
+    monkeypatch.setattr(files, "_write_temporary", full)
+    fails_cleanly(["run", "small.ngc", *_MC, *_old_outputs(work)],
+                  r"s.txt: cannot write: no space left on device", work, capsys)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_run_interrupted_while_writing_keeps_every_old_output(work, small, capsys, monkeypatch,
+                                                              signum):
+    import precontour.files as files
+    real = files._write_temporary
+
+    def interrupted(path, content):
+        if path.name == "c.csv":   # the last of the three: two are written already
+            os.kill(os.getpid(), signum)
+        return real(path, content)
+
+    monkeypatch.setattr(files, "_write_temporary", interrupted)
+    argv = ["run", "small.ngc", *_MC, *_old_outputs(work)]
+    before = digest(work)
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == (128 + signal.SIGTERM if signum == signal.SIGTERM else 130), err
+    assert err.splitlines()[-1] == ("precontour: terminated" if signum == signal.SIGTERM
+                                    else "precontour: interrupted"), err
+    assert "Traceback" not in err
+    assert digest(work) == before and not list(work.rglob("*.tmp"))
+
+
+def test_run_rename_failing_midway_keeps_every_old_output(work, small, capsys, monkeypatch):
+    import precontour.files as files
+    real = files._rename
+    calls = []
+
+    def second_fails(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:
+            raise OSError(errno.EIO, "Input/output error")
+        real(src, dst)
+
+    monkeypatch.setattr(files, "_rename", second_fails)
+    fails_cleanly(["run", "small.ngc", *_MC, *_old_outputs(work), "--report", "R"],
+                  r"cannot write: Input/output error", work, capsys)
+    assert len(calls) == 2 and not (work / "R").exists()
+
+
+def test_run_refuses_a_huge_program_early_as_trajectory_does(work, capsys):
+    (work / "huge.ngc").write_text("G21 G90\nG1 X0 Y0 Z0 A0 C0 F1000\nG1 X999999\n")
+    messages = []
+    for command in (["trajectory", "huge.ngc", "-o", "t.csv"],
+                    ["run", "huge.ngc", *_MC, "-o", "o.ngc"]):
+        assert main(command) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1, err   # the error alone: no progress line before it
+        messages.append(err[0])
+    assert messages[0] == messages[1]
+    assert re.search(r"^precontour: error: huge.ngc: the program's trajectory would have about "
+                     r"6e\+07 samples at ts = 0.001 s, more than \d+; raise ts", messages[0]), \
+        messages[0]
+
+
+def test_a_failing_run_says_the_error_first(work, capsys):
+    (work / "home.ngc").write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG1 X1..5\n")
+    (work / "bad.toml").write_text("[machine]\nname = 1\n")
+    for argv, match in (
+            (["run", "home.ngc", *_MC, "-o", "o.ngc"], r"^precontour: error: home.ngc, line 3, word 'X1..5'"),
+            (["run", "home.ngc", "--machine", "zhang2013", "--controller", "nope", "-o",
+              "o.ngc"], "unknown controller"),
+            (["run", "home.ngc", "--machine", "bad.toml", "--controller", "pid-low", "-o",
+              "o.ngc"], "bad.toml")):
+        assert main(argv) == 2
+        first, err = _first_err_line(capsys)
+        assert re.search(match, first), err
+
+
+def test_excite_travel_beyond_the_axis_is_refused(work, capsys):
+    fails_cleanly(["excite", "--axes", "X", "--travel-linear", "1e9", "-o", "e.csv"],
+                  r"field '--travel-linear': X: a half travel of 1e\+09 mm does not fit in the "
+                  r"X axis's travel \[-1e\+06, 1e\+06\] mm", work, capsys)
+    fails_cleanly(["excite", "--axes", "A", "--travel-rotary", "4", "-o", "e.ngc"],
+                  r"A: a half travel of 4 rad does not fit in the A axis's travel "
+                  r"\[-3.14159, 3.14159\] rad", work, capsys)
+    fails_cleanly(["excite", "--machine", "linuxcnc-xyzac-trt", "--axes", "Y",
+                   "--travel-linear", "150", "-o", "e.csv"],
+                  r"Y: a half travel of 150 mm does not fit in the Y axis's travel \[-100, "
+                  r"100\] mm", work, capsys)
+    fails_cleanly(["excite", "--axes", "C", "-o", "e.xyz"], r"e.xyz: unsupported output type",
+                  work, capsys)
+
+
+def test_excite_on_a_short_axis_stays_within_its_travel(work, capsys):
+    text = builtin_machine_text().replace("[drives.X]\n", "[drives.X]\np_min = -10\np_max = 10\n")
+    assert "p_min = -10" in text
+    (work / "short.toml").write_text(text)
+    assert main(["excite", "--machine", "short.toml", "--axes", "X", "-o", "e.csv"]) == 0
+    err = capsys.readouterr().err
+    assert "precontour: note: excitation of X: half travel 9 mm instead of 25 mm" in err, err
+    q = read_columns(work / "e.csv", ["X"])["X"]
+    assert -10 <= q.min() and q.max() <= 10 and q.max() - q.min() > 17
+    assert main(["export", "e.csv", "--machine", "short.toml", "-o", "e.ngc"]) == 0
+
+
+def test_export_refuses_a_tilt_beyond_its_travel_suggesting_degrees(work, capsys):
+    t = np.arange(100) * 1e-3
+    _write_rows(work / "deg.csv", {"t": t, "X": 0 * t, "Y": 0 * t, "Z": 300 + 0 * t,
+                                   "A": 90 + 0 * t, "C": 0 * t})
+    for fmt in ("ngc", "txt"):
+        fails_cleanly(["export", "deg.csv", "--format", "gcode" if fmt == "ngc" else
+                       "halstreamer", "--machine", "zhang2013", "-o", f"o.{fmt}"],
+                      r"deg.csv, row 1, field 'A': A = 90 rad is outside the A axis's travel "
+                      r"\[-3.14159, 3.14159\] rad .*were degrees given\? \(90 deg would be "
+                      r"1.5708 rad\)", work, capsys)
+
+
+def test_run_learning_that_diverges_is_not_kept(work, small, capsys, monkeypatch):
+    """A learning update that blows up (here: multiplied a thousandfold each pass, inf and
+    NaN after a few) is not kept; run writes the linear compensation, exit 0."""
+    import precontour.compensation.within_limits as within_limits
+    real = within_limits.learning_step
+
+    def diverging(*args, **kwargs):
+        step = real(*args, **kwargs)
+        return lambda q_cmd, q_act, actual: q_cmd + 1e150 * (step(q_cmd, q_act, actual) - q_cmd)
+
+    monkeypatch.setattr(within_limits, "learning_step", diverging)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["run", "small.ngc", *_MC, "--learn", "3", "-o", "o.ngc"]) == 0
+    out = capsys.readouterr().out
+    assert "kept linear" in out or "kept uncompensated" in out, out
+    assert "nan" not in (work / "o.ngc").read_text().lower()
+
+
+def test_identify_with_zero_currents_names_the_log_and_the_column(work, capsys):
+    t = np.arange(400) * 1e-3
+    _write_rows(work / "zero.csv", {"t": t, "X": np.sin(5 * t), "X_act": np.sin(5 * t) - 1e-4,
+                                    "I_X": 0 * t})
+    fails_cleanly(["identify", "zero.csv", "-o", "o.toml"],
+                  r"zero.csv, field 'I_X': the motor current of X is zero on every row",
+                  work, capsys)
+
+
+def test_identify_of_a_huge_sparse_halsampler_file_refuses_at_its_first_line(
+        work, capsys, tmp_path_factory):
+    import tracemalloc
+    path = tmp_path_factory.mktemp("sparse") / "sparse.txt"   # not hashed by fails_cleanly
+    with open(path, "wb") as handle:
+        handle.write(b"0.0\n")
+        handle.truncate(1 << 30)   # 1 GiB, a hole after the first line
+    tracemalloc.start()
+    try:
+        fails_cleanly(["identify", path, "--format", "halsampler", "--columns",
+                       "t,X,X_act", "-o", "o.toml"],
+                      r"sparse.txt: 3 column names for 1 values per line", work, capsys)
+        # the rest of the file is never read
+        assert tracemalloc.get_traced_memory()[1] < 50e6
+        with open(path, "r+b") as handle:
+            handle.seek(0)
+            handle.write(b"".join(b"%d 0.5 0.5\n" % k for k in range(30)))
+        fails_cleanly(["identify", path, "--format", "halsampler", "--columns",
+                       "t,X,X_act", "-o", "o.toml"],
+                      r"sparse.txt, row 31: binary data", work, capsys)
+        assert tracemalloc.get_traced_memory()[1] < 50e6
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("signum, code, line", [(signal.SIGTERM, 143, "precontour: terminated"),
+                                                (signal.SIGINT, 130, "precontour: interrupted")])
+def test_a_signal_stops_run_between_stages_not_inside_one(work, small, capsys, monkeypatch,
+                                                         signum, code, line):
+    """The signal comes while the virtual machine runs (compiled code): that stage ends
+    normally, the run stops before the next one, with one line and nothing written."""
+    import precontour.workflow as workflow
+    real = workflow.check_on_virtual_machine
+    finished = []
+
+    def stage(*args, **kwargs):
+        os.kill(os.getpid(), signum)
+        sum(range(200_000))   # Python code: a handler that raises would stop here
+        result = real(*args, **kwargs)
+        finished.append(True)
+        return result
+
+    monkeypatch.setattr(workflow, "check_on_virtual_machine", stage)
+    before = digest(work)
+    assert main(["run", "small.ngc", *_MC, "-o", "o.ngc"]) == code
+    err = capsys.readouterr().err
+    assert finished == [True]
+    assert err.splitlines()[-1] == line and "Traceback" not in err, err
+    assert digest(work) == before
+
+
+@pytest.mark.parametrize("delay", [0.3, 1.0])
+def test_ctrl_c_during_start_up_is_one_line(work, delay):
+    import subprocess
+    import sys
+    import time
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[1] / "src"))
+    proc = subprocess.Popen([sys.executable, "-m", "precontour", "compensate", "paper.csv",
+                             "-o", "c.csv"], cwd=work, env=env, stderr=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 130, (out, err)
+    assert "Traceback" not in err, err
+    assert [x for x in err.splitlines() if x.startswith("precontour:")
+            and not x.startswith("precontour: note:")] == ["precontour: interrupted"], err
+    assert not (work / "c.csv").exists()
+
+
+def test_a_c_wrap_is_unwrapped_alike_by_every_command(work, paper, capsys):
+    """A 2 pi step of C between two samples (a post-processor's wrap): predict, compensate,
+    simulate and export each unwrap it with one notice naming the row and the step, and
+    work on the same continuous C as without the wrap."""
+    wrapped = dict(paper)
+    wrapped["C"] = paper["C"].copy()
+    wrapped["C"][1500:] += 2 * np.pi
+    _write_rows(work / "wrap.csv", wrapped)
+    machine = load_machine("zhang2013")
+    for argv in (["predict", "wrap.csv", "-o", "p.csv"],
+                 ["compensate", "wrap.csv", "--learn", "0", "-o", "c.csv"],
+                 ["simulate", "wrap.csv", "-o", "s.csv"],
+                 ["export", "wrap.csv", "--machine", "zhang2013", "-o", "e.ngc"]):
+        assert main(argv) == 0, argv
+        notes = [x for x in capsys.readouterr().err.splitlines()
+                 if x.startswith("precontour: note:")]
+        assert len(notes) == 1 and "wrap.csv, row 1501, field 'C': C steps by 6.28" in \
+            notes[0], (argv, notes)
+    c = read_columns(work / "c.csv", ["t", "C"])
+    assert np.abs(np.diff(c["C"])).max() / 1e-3 <= machine.drive("C").v_max
+    assert main(["compensate", "paper.csv", "--learn", "0", "-o", "c0.csv"]) == 0
+    np.testing.assert_allclose(c["C"], read_columns(work / "c0.csv", ["C"])["C"], atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# Fuzzing the servo-log readers, the excitation's options and export: only precontour's own
+# errors, and what is made keeps the machine's limits and is accepted by the next command
+
+from precontour.identification.servo_log import read_servo_log  # noqa: E402
+
+_HALSAMPLER_TEXT = "".join(f"{k} {0.01 * k!r} {0.01 * k - 1e-4!r} {0.1 * (k % 7)!r}\n"
+                           for k in range(40)).encode()
+_HALSCOPE_TEXT = ("Sampling period is 1000000 ns\nX;X_act\n" + "".join(
+    f"{0.01 * k!r};{0.01 * k - 1e-4!r}\n" for k in range(40))).encode()
+_LOG_CSV = ("t,X,X_act,I_X\n" + "".join(f"{k * 1e-3!r},{0.01 * k!r},{0.01 * k - 1e-4!r},"
+                                        f"{0.1 + 0.01 * (k % 5)!r}\n"
+                                        for k in range(40))).encode()
+
+LOG_READERS = {
+    "halsampler.txt": (lambda p: read_servo_log(p, fmt="halsampler",
+                                                columns=["n", "X", "X_act", "I_X"],
+                                                default_period=1e-3), _HALSAMPLER_TEXT),
+    "halscope.txt": (lambda p: read_servo_log(p, fmt="halscope"), _HALSCOPE_TEXT),
+    "log.csv": (read_servo_log, _LOG_CSV),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LOG_READERS))
+def test_fuzz_servo_logs_arbitrary_and_mutated(tmp_path, name):
+    read, seed = LOG_READERS[name]
+    read(_write_seed(tmp_path / name, seed))   # the seed itself is valid
+
+    @FUZZ
+    @given(data=st.one_of(st.binary(max_size=2000), mutated(seed)))
+    def check(data):
+        _reads_cleanly(read, tmp_path / name, data)
+
+    check()
+
+
+_MACHINES = {name: load_machine(name) for name in ("zhang2013", "linuxcnc-xyzac-trt",
+                                                    "linuxcnc-xyzbc-trt")}
+
+
+@settings(FUZZ, max_examples=int(os.environ.get("FUZZ_EXCITE_EXAMPLES", "25")))
+@given(name=st.sampled_from(sorted(_MACHINES)),
+       axes=st.lists(st.sampled_from("XYZAC"), min_size=1, max_size=3, unique=True),
+       linear=st.one_of(st.none(), st.floats(1e-3, 1e9), st.sampled_from([0.0, -1.0, np.inf,
+                                                                         np.nan])),
+       rotary=st.one_of(st.none(), st.floats(1e-4, 10.0)),
+       safety=st.sampled_from([0.05, 0.5, 1.0]))
+def test_fuzz_excitation_options(name, axes, linear, rotary, safety):
+    """Any travel and safety: refused with precontour's error, or a motion within
+    ``safety`` of every velocity, acceleration and jerk limit and within every axis's travel
+    -- what export checks before it writes a program."""
+    from precontour.identification import excitation_trajectory
+    from precontour.trajectory.limits import AxisLimits, check_limits, check_travel
+
+    machine = _MACHINES[name]
+    travel = {a: (rotary if a in "AC" else linear) for a in axes}
+    travel = {a: v for a, v in travel.items() if v is not None}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            traj = excitation_trajectory(machine, axes=tuple(axes), travel=travel,
+                                         safety=safety, max_samples=300_000)
+        except PrecontourError:
+            return
+    limits = AxisLimits.from_machine(machine)
+    check_travel(traj.q, limits)
+    scaled = AxisLimits(limits.position_min, limits.position_max, safety * limits.velocity,
+                        safety * limits.acceleration, safety * limits.jerk)
+    assert check_limits(traj.q, traj.ts, scaled).ok
+
+
+@settings(FUZZ, max_examples=int(os.environ.get("FUZZ_EXPORT_EXAMPLES", "25")))
+@given(scale=st.sampled_from([1e-3, 1.0, 90.0, 1e3, 1e7]),
+       axis=st.integers(0, 4), n=st.integers(0, 60),
+       name=st.sampled_from(sorted(_MACHINES)))
+def test_fuzz_export_writes_only_what_the_gcode_reader_reads(tmp_path_factory, scale, axis, n,
+                                                             name):
+    """A command file with one axis scaled (degrees for radians, metres, nonsense): export
+    refuses it with one of precontour's errors, or writes a program that the G-code reader
+    reads back on the same machine."""
+    from precontour.toolpath import read_program
+    from precontour.workflow import export_commands
+
+    folder = tmp_path_factory.mktemp("export")
+    t = np.arange(n) * 1e-3
+    q = np.zeros((n, 5))
+    q[:, 2] = 100.0
+    q[:, axis] += scale * np.sin(np.pi * t) ** 2
+    path = folder / "cmd.csv"
+    _write_rows(path, {"t": t, **{a: q[:, i] for i, a in enumerate("XYZAC")}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            export_commands(path, folder / "o.ngc", machine=name)
+        except PrecontourError:
+            return
+        read_program(folder / "o.ngc", _MACHINES[name])
+
+
+def test_what_excite_writes_export_accepts(work, capsys):
+    """On the LinuxCNC machine the excitation of X went to 173 % of v_max, which export then
+    refused; now export takes it, and the G-code excite writes reads back."""
+    from precontour.toolpath import read_program
+    machine = "linuxcnc-xyzac-trt"
+    assert main(["excite", "--machine", machine, "--axes", "XA", "-o", "e.csv"]) == 0
+    assert main(["excite", "--machine", machine, "--axes", "XA", "-o", "e.ngc"]) == 0
+    assert main(["export", "e.csv", "--machine", machine, "-o", "x.ngc"]) == 0
+    assert main(["export", "e.csv", "--machine", machine, "--format", "halstreamer",
+                 "-o", "x.txt"]) == 0
+    read_program(work / "e.ngc", load_machine(machine))
+    capsys.readouterr()

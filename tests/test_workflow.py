@@ -6,6 +6,7 @@ untouched."""
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -20,6 +21,9 @@ from conftest import nanometre_draws
 gcodeparser = pytest.importorskip("gcodeparser")
 
 TOL = np.array([1e-3] * 3 + [1e-5] * 2)
+#: run and export name their machine (and run its controller): there is no default.
+MACHINE = ("--machine", "zhang2013")
+RUN_MACHINE = MACHINE + ("--controller", "pid-low")
 
 
 def _write_cl(path, name="circle"):
@@ -59,11 +63,67 @@ def run_outputs(tmp_path_factory):
     folder = tmp_path_factory.mktemp("run")
     program = _write_cl(folder / "circle.csv")
     before = program.read_bytes()
-    code = main(["run", str(program), "--controller", "pid-high", "-o", str(folder / "out.ngc"),
-                 "--stream", str(folder / "out.txt"), "--commands", str(folder / "cmd.csv"),
-                 "--report", str(folder / "report")])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main(["run", str(program), *MACHINE, "--controller", "pid-high",
+                     "-o", str(folder / "out.ngc"), "--stream", str(folder / "out.txt"),
+                     "--commands", str(folder / "cmd.csv"), "--report", str(folder / "report")])
+    (folder / "warnings.txt").write_text("\n".join(str(w.message) for w in caught))
     assert program.read_bytes() == before
     return code, folder
+
+
+def test_run_gives_no_python_warnings(run_outputs):
+    _, folder = run_outputs
+    assert (folder / "warnings.txt").read_text() == ""
+
+
+def _largest(text):
+    """The rows of the table's "largest simulated errors" block:
+    {(quantity, commands): (value, unit, where, number, time)}."""
+    rows = {}
+    for m in re.finditer(r"^  (tip|orientation), (compensated|uncompensated) +([\d.]+) (um|mrad)"
+                         r" +(line|row) (\d+) +t = ([\d.]+) s$", text, re.M):
+        rows[(m[1], m[2])] = (float(m[3]), m[4], m[5], int(m[6]), float(m[7]))
+    return rows
+
+
+def test_run_names_the_line_and_time_of_the_largest_errors(run_outputs, tmp_path):
+    """The table's largest remaining errors are those of the written commands run again on
+    the virtual machine by ``simulate``; the row named is the CL row the tool moves to."""
+    _, folder = run_outputs
+    summary = (folder / "report" / "summary.txt").read_text()
+    largest = _largest(summary)
+    assert len(largest) == 4, summary
+    table = {line[:22].strip(): [float(v) for v in line[22:].split()]
+             for line in summary.splitlines() if line.startswith("simulated ")
+             and "reduction" not in line}
+    assert largest[("tip", "compensated")][0] == pytest.approx(table["simulated after"][0],
+                                                               abs=1e-3)
+    assert largest[("orientation", "uncompensated")][0] == pytest.approx(
+        table["simulated before"][2], abs=1e-4)
+    sim = tmp_path / "sim.csv"
+    assert main(["simulate", str(folder / "cmd.csv"), *MACHINE, "--controller", "pid-high",
+                 "-o", str(sim)]) == 0
+    from precontour.tables import read_columns
+    measured = read_columns(sim, ["t", "eps_tip", "eps_ori"])
+    commands = read_trajectory(folder / "cmd.csv")
+    cl = np.loadtxt(folder / "circle.csv", delimiter=",", skiprows=1)
+    for quantity, column, digits in (("tip", "eps_tip", 3), ("orientation", "eps_ori", 4)):
+        value, _, where, row, time = largest[(quantity, "compensated")]
+        k = int(np.argmax(measured[column]))
+        assert value == pytest.approx(1e3 * measured[column][k], abs=0.51 * 10.0**-digits)
+        assert time == pytest.approx(measured["t"][k], abs=1e-3)
+        # CL data: the row is a file line (the header is line 1); the reference tool tip at
+        # that time lies on the path's segment that ends at that row's point
+        assert where == "row" and 2 <= row <= cl.shape[0] + 1
+        point, previous = cl[row - 2, :3], cl[max(row - 3, 0), :3]
+        tip = commands.P[int(np.argmin(np.abs(commands.t - time)))]
+        chord = np.linalg.norm(point - previous)
+        assert np.linalg.norm(tip - point) <= chord + 1e-6
+    # the command table carries the source line of every sample (here the CL file's rows)
+    assert commands.line is not None and commands.line[0] == 2
+    assert np.all(np.diff(commands.line) >= 0) and commands.line[-1] == cl.shape[0] + 1
 
 
 def test_run_writes_a_program_that_reproduces_the_commands(run_outputs):
@@ -108,8 +168,14 @@ def test_run_report_and_table(run_outputs, capsys):
     assert {"index.html", "contour_errors.png", "speed_and_limits.png", "summary.txt"} <= names
     summary = (folder / "report" / "summary.txt").read_text()
     for row in ("predicted before", "predicted after", "simulated before", "simulated after",
-                "duration", "blocks written"):
+                "largest simulated errors, where:", "duration", "blocks written"):
         assert row in summary
+    page = (folder / "report" / "index.html").read_text()
+    assert "Where the largest errors are" in page
+    for (quantity, commands), (value, unit, where, row, time) in _largest(summary).items():
+        digits = 3 if quantity == "tip" else 4
+        assert (f"<tr><td>{quantity}</td><td>{commands}</td><td>{value:.{digits}f} {unit}</td>"
+                f"<td>{where} {row}</td><td>{time:.3f}</td></tr>") in page
     # circle / pid-high: compensation breaks the A and C jerk limits near the end; run slows
     # down there and says so.
     assert "slowed t = " in summary
@@ -120,16 +186,18 @@ def test_export_formats_round_trip(run_outputs, tmp_path, capsys):
     source = folder / "cmd.csv"
     before = source.read_bytes()
     commands = read_trajectory(source)
-    assert main(["export", str(source), "-o", str(tmp_path / "a.ngc"), "--tol", "0.002,2e-5"]) == 0
+    assert main(["export", str(source), *MACHINE, "-o", str(tmp_path / "a.ngc"),
+                 "--tol", "0.002,2e-5"]) == 0
     times, points = _read_gcode((tmp_path / "a.ngc").read_text())
     rebuilt = np.column_stack([np.interp(commands.t - commands.t[0], times, points[:, i])
                                for i in range(5)])
     assert np.all(np.abs(rebuilt - commands.q).max(axis=0) <= 2 * TOL)
-    assert main(["export", str(source), "--format", "halstreamer", "-o",
+    assert main(["export", str(source), *MACHINE, "--format", "halstreamer", "-o",
                  str(tmp_path / "a.txt")]) == 0
-    assert main(["export", str(source), "-o", str(tmp_path / "a.npz")]) == 0
+    assert main(["export", str(source), *MACHINE, "-o", str(tmp_path / "a.npz")]) == 0
     np.testing.assert_array_equal(read_trajectory(tmp_path / "a.npz").q, commands.q)
-    assert main(["export", str(source), "--format", "csv", "-o", str(tmp_path / "b.csv")]) == 0
+    assert main(["export", str(source), *MACHINE, "--format", "csv",
+                 "-o", str(tmp_path / "b.csv")]) == 0
     np.testing.assert_array_equal(read_trajectory(tmp_path / "b.csv").q, commands.q)
     assert source.read_bytes() == before
     assert "blocks" in capsys.readouterr().out
@@ -164,27 +232,29 @@ def test_export_bad_inputs(tmp_path, capsys):
     sparse.write_text("t,X,Y,Z,A,C\n" + "".join(f"{0.002 * k},{k * 1e-3},0,0,0,0\n"
                                                   for k in range(20)))
     cases = [
-        (["export", str(fast), "-o", str(tmp_path / "f.ngc")], r"exceed the machine's limits"),
-        (["export", str(fast), "--format", "halstreamer", "-o", str(tmp_path / "f.txt")],
+        (["export", str(fast), *MACHINE, "-o", str(tmp_path / "f.ngc")],
          r"exceed the machine's limits"),
-        (["export", str(sparse), "--format", "halstreamer", "-o", str(tmp_path / "s.txt")],
+        (["export", str(fast), *MACHINE, "--format", "halstreamer", "-o", str(tmp_path / "f.txt")],
+         r"exceed the machine's limits"),
+        (["export", str(sparse), *MACHINE, "--format", "halstreamer",
+          "-o", str(tmp_path / "s.txt")],
          r"sparse\.csv, field 't': sampled every 0\.002 s"),
-        (["export", str(sparse), "-o", str(tmp_path / "s.txt")], r"give --format"),
-        (["export", str(sparse), "-o", str(sparse)], r"refusing to overwrite an input"),
-        (["export", str(sparse), "-o", str(tmp_path / "missing" / "s.ngc")],
+        (["export", str(sparse), *MACHINE, "-o", str(tmp_path / "s.txt")], r"give --format"),
+        (["export", str(sparse), *MACHINE, "-o", str(sparse)], r"refusing to overwrite an input"),
+        (["export", str(sparse), *MACHINE, "-o", str(tmp_path / "missing" / "s.ngc")],
          r"output directory does not exist"),
-        (["export", str(tmp_path / "nope.csv"), "-o", str(tmp_path / "s.ngc")],
+        (["export", str(tmp_path / "nope.csv"), *MACHINE, "-o", str(tmp_path / "s.ngc")],
          r"nope\.csv: no such file"),
         (["export", str(sparse), "--machine", "nope", "-o", str(tmp_path / "s.ngc")],
          r"not a built-in machine"),
-        (["export", str(sparse), "--format", "gcode", "-o", str(tmp_path / "s.csv")],
+        (["export", str(sparse), *MACHINE, "--format", "gcode", "-o", str(tmp_path / "s.csv")],
          r"unsupported output type '\.csv'"),
     ]
     for argv, pattern in cases:
         _fail(argv, capsys, pattern, tmp_path, inputs=[fast, sparse])
     for bad in ("0", "x", "1e-9", "0.001,1e-5,3"):
         with pytest.raises(SystemExit) as exit_info:
-            main(["export", str(sparse), "--tol", bad, "-o", str(tmp_path / "s.ngc")])
+            main(["export", str(sparse), *MACHINE, "--tol", bad, "-o", str(tmp_path / "s.ngc")])
         assert exit_info.value.code == 2
         assert "--tol" in capsys.readouterr().err
 
@@ -192,7 +262,7 @@ def test_export_bad_inputs(tmp_path, capsys):
 def test_run_bad_inputs(tmp_path, capsys):
     program = _write_cl(tmp_path / "p.csv", "paper")
     gcode = tmp_path / "home.ngc"
-    gcode.write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG28 Z0\n")
+    gcode.write_text("G90 G21\nG1 X0 Y0 Z300 A0 C0 F600\nG41 D1\n")
     machine_file = tmp_path / "m.toml"
     from precontour.machine.machine_file import builtin_machine_text
     machine_file.write_text(builtin_machine_text())
@@ -201,21 +271,24 @@ def test_run_bad_inputs(tmp_path, capsys):
     out = str(tmp_path / "o.ngc")
     inputs = [program, gcode, machine_file, report_file]
     cases = [
-        (["run", str(tmp_path / "none.ngc"), "-o", out], r"none\.ngc"),
-        (["run", str(program), "-o", str(tmp_path / "o.csv")], r"unsupported output type"),
-        (["run", str(program), "-o", out, "--controller", "pid-medium"],
+        (["run", str(tmp_path / "none.ngc"), *RUN_MACHINE, "-o", out], r"none\.ngc"),
+        (["run", str(program), *RUN_MACHINE, "-o", str(tmp_path / "o.csv")],
+         r"unsupported output type"),
+        (["run", str(program), *MACHINE, "-o", out, "--controller", "pid-medium"],
          r"unknown controller 'pid-medium'"),
-        (["run", str(program), "-o", out, "--stream", out], r"two outputs"),
-        (["run", str(program), "-o", out, "--commands", str(program)],
+        (["run", str(program), *RUN_MACHINE, "-o", out, "--stream", out], r"two outputs"),
+        (["run", str(program), *RUN_MACHINE, "-o", out, "--commands", str(program)],
          r"refusing to overwrite an input"),
-        (["run", str(program), "--machine", str(machine_file), "-o", out,
+        (["run", str(program), "--machine", str(machine_file), "--controller", "pid-low",
+          "-o", out,
           "--stream", str(machine_file)], r"m\.toml: refusing to overwrite an input"),
-        (["run", str(program), "-o", out, "--report", str(report_file)],
+        (["run", str(program), *RUN_MACHINE, "-o", out, "--report", str(report_file)],
          r"report folder is a file"),
-        (["run", str(program), "-o", out, "--report", str(tmp_path / "a" / "b")],
+        (["run", str(program), *RUN_MACHINE, "-o", out, "--report", str(tmp_path / "a" / "b")],
          r"parent does not exist"),
-        (["run", str(gcode), "-o", out], r"home\.ngc, line 3, word 'G28'"),
-        (["run", str(program), "--tcp", "-o", out], r"--tcp applies to G-code programs only"),
+        (["run", str(gcode), *RUN_MACHINE, "-o", out], r"home\.ngc, line 3, word 'G41'"),
+        (["run", str(program), *RUN_MACHINE, "--tcp", "-o", out],
+         r"--tcp applies to G-code programs only"),
     ]
     for argv, pattern in cases:
         _fail(argv, capsys, pattern, tmp_path, inputs=inputs)
@@ -234,11 +307,19 @@ def test_run_reads_gcode_in_machine_axes(tmp_path, capsys):
     program = tmp_path / "part.ngc"
     program.write_text("\n".join(lines) + "\n")
     before = program.read_bytes()
-    assert main(["run", str(program), "-o", str(tmp_path / "part-comp.ngc")]) == 0
+    assert main(["run", str(program), *RUN_MACHINE, "-o", str(tmp_path / "part-comp.ngc"),
+                 "--commands", str(tmp_path / "cmd.csv")]) == 0
     captured = capsys.readouterr()
     assert "compensate" in captured.err and "virtual machine" in captured.err
     assert "simulated after" in captured.out and "blocks written" in captured.out
     assert program.read_bytes() == before
+    # the largest errors are named by the G-code line executing at their time: a G1 block
+    commands = read_trajectory(tmp_path / "cmd.csv")
+    largest = _largest(captured.out)
+    assert len(largest) == 4
+    for value, unit, where, number, time in largest.values():
+        assert where == "line" and lines[number - 1].startswith(("G0 ", "G1 "))
+        assert commands.line[int(np.argmin(np.abs(commands.t - time)))] == number
     times, points = _read_gcode((tmp_path / "part-comp.ngc").read_text())
     assert len(times) > 10 and np.all(np.diff(times) >= 0.001 * (1 - 1e-9))
     # The compensated program stays close to the programmed path: within the servo lag.
@@ -281,7 +362,7 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
         program = tmp_path / f"paper{draw}.csv"
         np.savetxt(program, np.column_stack([path.P, path.O]), delimiter=",",
                    header="Px,Py,Pz,Oi,Oj,Ok", comments="")
-        assert main(["run", str(program), "--controller", "pid-high", "--learn", "4",
+        assert main(["run", str(program), *MACHINE, "--controller", "pid-high", "--learn", "4",
                      "-o", str(tmp_path / f"out{draw}.ngc"),
                      "--commands", str(tmp_path / "cmd.csv")]) == 0
         printed = capsys.readouterr().out

@@ -13,27 +13,61 @@ stages before it::
     workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
     tables.py      checked CSV / .npz / .parquet in and out
+    defaults.py    option defaults and names the help shows (standard library only)
     cli.py         the ``precontour`` command
 
-The names below are the entry points a library user needs.
+The names below are the entry points a library user needs; each is imported when first used.
 """
 
-from .compensation import CompensationResult, compensate
-from .errors import InputError, MachineFileError, PrecontourError, ProgramError, ToolPathError
-from .machine import Machine, load_machine
-from .prediction import (AxisPrediction, ContourErrors, ReferencePath, contour_errors,
-                         predict_tracking)
-from .simulation import SimulationResult, simulate, simulate_trajectory
-from .tables import read_trajectory, write_columns
-from .toolpath import Program, ToolPath, read_program, read_toolpath
-from .trajectory import Trajectory, builtin_path, generate_trajectory, program_trajectory
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
-__all__ = ["AxisPrediction", "CompensationResult", "ContourErrors", "InputError", "Machine",
-           "MachineFileError", "PrecontourError", "Program", "ProgramError", "ReferencePath",
-           "SimulationResult", "ToolPath", "ToolPathError", "Trajectory", "builtin_path",
-           "compensate", "contour_errors", "generate_trajectory", "load_machine",
-           "predict_tracking", "program_trajectory", "read_program", "read_toolpath",
-           "read_trajectory", "simulate", "simulate_trajectory", "write_columns",
-           "__version__"]
+#: Each public name and the module it comes from. They are imported when first used (PEP 562),
+#: so that the command line starts without the numerical stack (``precontour --help``).
+_PUBLIC = {
+    "CompensationResult": "compensation", "compensate": "compensation",
+    "InputError": "errors", "MachineFileError": "errors", "PrecontourError": "errors",
+    "ProgramError": "errors", "ToolPathError": "errors",
+    "Machine": "machine", "load_machine": "machine",
+    "AxisPrediction": "prediction", "ContourErrors": "prediction",
+    "ReferencePath": "prediction", "contour_errors": "prediction",
+    "predict_tracking": "prediction",
+    "SimulationResult": "simulation", "simulate": "simulation",
+    "simulate_trajectory": "simulation",
+    "read_trajectory": "tables", "write_columns": "tables",
+    "Program": "toolpath", "ToolPath": "toolpath", "read_program": "toolpath",
+    "read_toolpath": "toolpath",
+    "Trajectory": "trajectory", "builtin_path": "trajectory",
+    "generate_trajectory": "trajectory", "program_trajectory": "trajectory",
+}
+
+__all__ = sorted(_PUBLIC) + ["__version__"]
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and editors
+    from .compensation import CompensationResult, compensate
+    from .errors import (InputError, MachineFileError, PrecontourError, ProgramError,
+                         ToolPathError)
+    from .machine import Machine, load_machine
+    from .prediction import (AxisPrediction, ContourErrors, ReferencePath, contour_errors,
+                             predict_tracking)
+    from .simulation import SimulationResult, simulate, simulate_trajectory
+    from .tables import read_trajectory, write_columns
+    from .toolpath import Program, ToolPath, read_program, read_toolpath
+    from .trajectory import Trajectory, builtin_path, generate_trajectory, program_trajectory
+
+
+def __getattr__(name: str):
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -11,42 +11,27 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
+import textwrap
 import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import numpy as np
-
+# Only light modules at the top: the numerical stack (numpy, scipy, numba, matplotlib, and the
+# compiled kernels) takes a second or more to load, so each command imports what it needs
+# when it runs, and --help, --version and `machines` never load it. Defaults and names the
+# help shows come from precontour.defaults (tests/test_cli.py checks what --help imports).
 from . import __version__
-from .machine.drives import AXES, ROTARY_AXES
-from .trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
-from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program, predict_program
-from .compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY, METHODS)
-from .compensation.stops import DEFAULT_LEARNING_PASSES
-from .prediction.contour import ReferencePath, contour_errors
+from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS,
+                       COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
+                       DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
+                       DEFAULT_LEARNING_PASSES, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
+                       DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
+                       GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, builtin_machines,
+                       default_max_samples)
 from .errors import NOTICES, InputError, PrecontourError
-from .files import (Terminated, check_outputs, check_report_folder, input_files,
-                    sigterm_as_exception)
-from .trajectory.feedplan import DEFAULT_FEED
-from .machine.controllers import is_closed_loop
-from .machine.machine_file import load_machine
-from .simulation.ensemble import ensemble_actual
-from .simulation.virtual_machine import simulate
-from .prediction.splinefit import DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY
-from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference, read_trajectory,
-                     trajectory_columns, write_columns, write_text)
-from .identification import (FORMATS as LOG_FORMATS, excitation_trajectory, identify,
-                             read_servo_log, write_excitation)
-from .identification.excitation import DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR, DEFAULT_TRAVEL_ROTARY
-from .machine.machine_file import machine_data
-from .toolpath import read_program, read_toolpath, toolpath_format
-from .trajectory.generate import (DEFAULT_DWELL, default_max_samples, generate_trajectory,
-                                  summarize)
-from .trajectory.program import DEFAULT_TOLERANCE, program_trajectory
-from .toolpath.writers import (DEFAULT_TOL_LINEAR as GCODE_TOL_LINEAR,
-                               DEFAULT_TOL_ROTARY as GCODE_TOL_ROTARY, axis_tolerances)
-from .workflow import EXPORT_FORMATS, compensate_keeping_limits
+from .files import OutputSet, Terminated, input_files, interruption, sigterm_as_exception
 
 EXIT_USAGE = 2
 
@@ -75,15 +60,24 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print(f"precontour: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
-    except Terminated as exc:
-        print("precontour: terminated", file=sys.stderr)
-        return int(exc.code)
-    except KeyboardInterrupt:  # pragma: no cover - interactive
-        print("precontour: interrupted", file=sys.stderr)
-        return 130
+    except (Terminated, KeyboardInterrupt, SystemError) as exc:
+        # SystemError: a compiled call that a second signal interrupted
+        stop = interruption(exc)
+        if stop is None:
+            raise
+        return _stopped(stop)
     finally:
         NOTICES.removeHandler(notices)
         NOTICES.propagate = propagate
+
+
+def _stopped(exc: BaseException) -> int:
+    """The one line and the exit code of a command stopped by SIGTERM or Ctrl-C."""
+    if isinstance(exc, Terminated):
+        print("precontour: terminated", file=sys.stderr)
+        return int(exc.code)
+    print("precontour: interrupted", file=sys.stderr)
+    return 130
 
 
 def _one_line(exc: Exception) -> str:
@@ -102,8 +96,44 @@ def _about(path):
         raise located from None
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """argparse's help layout, without breaking lines at hyphens: names such as pid-low,
+    --corner-tol or linuxcnc-xyzac-trt stay whole."""
+
+    def _split_lines(self, text, width):
+        return textwrap.wrap(self._whitespace_matcher.sub(" ", text).strip(), width,
+                             break_on_hyphens=False)
+
+    def _fill_text(self, text, width, indent):
+        return textwrap.fill(self._whitespace_matcher.sub(" ", text).strip(), width,
+                             initial_indent=indent, subsequent_indent=indent,
+                             break_on_hyphens=False)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, whose error for a missing ``--machine`` or ``--controller`` also
+    says where the built-in ones are listed."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):
+        if "required" in message and ("--machine" in message or "--controller" in message):
+            message += ("; `precontour machines` lists the built-in machines ("
+                        + ", ".join(BUILTIN_MACHINES) + ") and their controllers")
+        super().error(message)
+
+
+#: ``controller=REQUIRED`` in :func:`_add_machine_options`: ``--controller`` has no default.
+REQUIRED = object()
+#: The machine and controller of the commands that keep a default (not ``run``, ``export``).
+DEFAULT_MACHINE = "zhang2013"
+DEFAULT_CONTROLLER = "pid-low"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="precontour",
         description="Predict and pre-compensate five-axis CNC contour errors "
                     "(Zhang, Yuen & Altintas 2013).")
@@ -137,8 +167,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "or G-code .nc/.ngc/.gcode/.tap/.mpf")
     source.add_argument("--builtin", choices=BUILTIN_PATHS, metavar="NAME",
                         help=f"built-in test path: {', '.join(BUILTIN_PATHS)}")
-    trajectory.add_argument("--machine", default="zhang2013",
-                            help="built-in machine name or machine TOML file (default: zhang2013)")
+    _add_machine_options(trajectory, controller=None)
     trajectory.add_argument("--feed", type=_positive_float, default=DEFAULT_FEED, metavar="MM_S",
                             help=f"maximum tool tip feed in mm/s for CL data and built-in paths "
                                  f"(default {DEFAULT_FEED:g}); a G-code program keeps its own")
@@ -146,24 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help="sampling period in s (default: the machine's servo period)")
     trajectory.add_argument("--feed-units", choices=("mm/min", "mm/s"), default="mm/min",
                             help="unit of programmed feeds in CL-data CSV/APT (default mm/min)")
-    trajectory.add_argument("--dwell", type=_nonnegative_float, default=DEFAULT_DWELL, metavar="S",
-                            help="hold the final position (and, for G-code, each M0/M1/M6 "
-                                 "stop) this long so the drives settle inside the trajectory "
-                                 f"(default {DEFAULT_DWELL:g} s)")
-    trajectory.add_argument("--corner-tol", type=_positive_float, default=DEFAULT_TOLERANCE,
-                            metavar="MM",
-                            help="G-code: largest distance by which the blend of a corner "
-                                 "between two blocks may leave the programmed path, where the "
-                                 "program sets none (G64 P, G61); sharper corners are slowed "
-                                 f"for, or stopped at (default {DEFAULT_TOLERANCE:g} mm)")
-    trajectory.add_argument("--tcp", action="store_true",
-                            help="G-code: the whole program is in tool centre point mode (X Y Z "
-                                 "the tool tip, A C the rotary axes), for controllers that "
-                                 "switch it with their own M code (LinuxCNC M428)")
-    trajectory.add_argument("--max-samples", type=_positive_int, default=None, metavar="N",
-                            help="refuse a trajectory of more samples, estimated before any "
-                                 "is made (default: sized to this machine's memory, "
-                                 f"{default_max_samples()} here)")
+    _add_planning_options(trajectory)
     trajectory.add_argument("-o", "--output", type=Path, required=True,
                             help="output file (.csv/.npz/.parquet): "
                                  "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -177,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help="trajectory file with t,X,Y,Z,A,C and the reference "
                                  "Px,Py,Pz,Oi,Oj,Ok")
     _add_machine_options(compensate)
-    compensate.add_argument("--method", choices=METHODS, default="contour",
+    compensate.add_argument("--method", choices=COMPENSATION_METHODS, default="contour",
                             help="contour: contour-error pre-compensation (default); tracking: "
                                  "add the predicted axis tracking errors (the paper's baseline)")
     compensate.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
@@ -243,8 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "friction compensation) and on the exact linear model; print the paper's "
                     "Tables 3-4 with ours next to them and write figures, tables and an "
                     "index.html. Only the report's own files are overwritten.")
-    demo.add_argument("--out", type=Path, default=Path("precontour-demo"), metavar="DIR",
-                      help="report folder, created if missing (default: precontour-demo)")
+    _add_report_option(demo, Path("precontour-demo"))
     demo.add_argument("--paths", default="paper", metavar="NAMES",
                       help="comma-separated built-in paths out of "
                            f"{','.join(BUILTIN_PATHS)} (default: paper)")
@@ -269,10 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     # no argparse choices: an unknown name then gets the one-line error of the others
     source.add_argument("--builtin", metavar="NAME",
                         help=f"built-in path: {', '.join(BUILTIN_PATHS)} (default: paper)")
-    compare.add_argument("--machine", default="zhang2013",
-                         help="built-in machine name or machine TOML file (default: zhang2013)")
-    compare.add_argument("--out", type=Path, default=Path("precontour-compare"), metavar="DIR",
-                         help="report folder, created if missing (default: precontour-compare)")
+    _add_machine_options(compare, controller=None)
+    _add_report_option(compare, Path("precontour-compare"))
     compare.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
                          help="largest number of contour compensation passes (default 1; the "
                               "tracking baseline is always the paper's single pass)")
@@ -293,8 +302,8 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("log", type=Path,
                        help="servo log: .csv/.npz/.parquet with t,X..C,X_act..C_act[,I_X..I_C], "
                             "LinuxCNC halsampler output, or a halscope log")
-    ident.add_argument("--machine", default="zhang2013",
-                       help="base machine: built-in name or machine TOML file (default: zhang2013)")
+    _add_machine_options(ident, controller=None,
+                         machine_help="base machine: built-in name or machine TOML file")
     ident.add_argument("-o", "--output", type=Path, required=True,
                        help="identified machine file (.toml)")
     ident.add_argument("--name", default="identified",
@@ -325,19 +334,20 @@ def build_parser() -> argparse.ArgumentParser:
         description="Per axis: jerk-limited steps, reversals at three speeds and a multi-sine "
                     "riding on a drift speed; one axis at a time, then all together; within "
                     "a fraction of the machine's velocity, acceleration and jerk limits.")
-    excite.add_argument("--machine", default="zhang2013",
-                        help="built-in machine name or machine TOML file (default: zhang2013)")
+    _add_machine_options(excite, controller=None)
     excite.add_argument("-o", "--output", type=Path, required=True,
                         help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C), or .ngc / .txt "
                              "(G-code / halstreamer, needs precontour.toolpath.writers)")
     excite.add_argument("--safety", type=_positive_float, default=DEFAULT_SAFETY, metavar="F",
                         help=f"fraction of v_max, a_max, j_max used (default {DEFAULT_SAFETY:g})")
-    excite.add_argument("--travel-linear", type=_positive_float, default=DEFAULT_TRAVEL_LINEAR,
+    excite.add_argument("--travel-linear", type=_positive_float, default=None,
                         metavar="MM", help="half travel of X, Y, Z around the start (default "
-                                           f"{DEFAULT_TRAVEL_LINEAR:g} mm)")
-    excite.add_argument("--travel-rotary", type=_positive_float, default=DEFAULT_TRAVEL_ROTARY,
+                                           f"{DEFAULT_TRAVEL_LINEAR:g} mm, shortened to fit an "
+                                           "axis's travel; one given must fit)")
+    excite.add_argument("--travel-rotary", type=_positive_float, default=None,
                         metavar="RAD", help="half travel of A, C around the start (default "
-                                            f"{DEFAULT_TRAVEL_ROTARY:g} rad)")
+                                            f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
+                                            "an axis's travel; one given must fit)")
     excite.add_argument("--axes", default="XYZAC", metavar="AXES",
                         help="axes to excite (default XYZAC)")
     excite.set_defaults(run=run_excite)
@@ -347,35 +357,36 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a command file as machine-axis G-code (G90 G93 inverse-time G1 "
                     "blocks, decimated within --tol), as a LinuxCNC halstreamer file (one "
                     "line X Y Z A C per servo period) or as a table. Programs must keep the "
-                    "machine's axis limits; commands that do not are refused.")
+                    "machine's axis limits; commands that do not are refused.",
+        epilog=_machines_epilog())
     export.add_argument("commands", type=Path,
                         help="command file (.csv/.npz/.parquet) with t,X,Y,Z,A,C (s, mm, rad), "
                              "uniformly sampled")
     export.add_argument("--format", choices=EXPORT_FORMATS, default=None,
                         help="gcode, halstreamer, csv, npz or parquet (default: from the "
                              "extension of -o; needed for halstreamer)")
-    export.add_argument("--machine", default="zhang2013",
-                        help="built-in machine name or machine TOML file, for the limits and "
-                             "the header (default: zhang2013)")
-    export.add_argument("--controller", default="",
-                        help="controller name to record in the header (optional)")
+    _add_machine_options(export, required=True, controller="",
+                         machine_help="built-in machine name or machine TOML file, for the "
+                                      "limits and the header")
     _add_tol_option(export)
     export.add_argument("-o", "--output", type=Path, required=True, help="output file")
     export.set_defaults(run=run_export)
 
     run = commands.add_parser(
         "run", help="program in, compensated program out",
-        description="Read an NC program (G-code in machine axes) or CL data, plan the "
-                    "trajectory, predict and contour pre-compensate the axis commands, keep "
-                    "them within the machine's axis limits (slowing down locally and "
-                    "compensating again where needed), check uncompensated and compensated "
-                    "commands on the realistic virtual machine, and write the compensated "
-                    "program. Progress goes to stderr; a table of the results to stdout.")
+        description="Read an NC program (G-code of machine axis positions or, in tool "
+                    "centre point mode, of tool tip positions: see --tcp) or CL data, "
+                    "plan the trajectory, predict and contour pre-compensate the axis "
+                    "commands, keep them within the machine's axis limits (slowing down "
+                    "locally and compensating again where needed), check uncompensated and "
+                    "compensated commands on the realistic virtual machine, and write the "
+                    "compensated program. Progress goes to stderr; a table of the results, "
+                    "with the line and time of the largest errors, to stdout.",
+        epilog=_machines_epilog())
     run.add_argument("program", type=Path,
                      help="NC program (.nc/.ngc/.gcode/...) or CL data (.csv/.apt)")
-    _add_machine_options(run)
-    run.add_argument("--tcp", action="store_true",
-                     help="the whole program is in tool centre point mode (X Y Z = tool tip)")
+    _add_machine_options(run, required=True, controller=REQUIRED)
+    _add_planning_options(run)
     run.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
                      help="largest number of compensation passes (default 1)")
     run.add_argument("--learn", type=_nonnegative_int, default=0, metavar="N",
@@ -390,12 +401,111 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--stream", type=Path, default=None, metavar="OUT.txt",
                      help="also write a halstreamer file (one line per servo period)")
     run.add_argument("--commands", type=Path, default=None, metavar="OUT.csv",
-                     help="also write the compensated commands with the reference: "
-                          "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
+                     help="also write the compensated commands with the reference and the "
+                          "source line of each sample: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok,line")
     run.add_argument("--report", type=Path, default=None, metavar="DIR",
                      help="also write figures, the table and an index.html to DIR")
     run.set_defaults(run=run_run)
+
+    machines = commands.add_parser(
+        "machines", help="list the built-in machines, or print an annotated machine file",
+        description="List the built-in machines (--machine NAME) with their kinematics type, "
+                    "axes and controllers (--controller NAME). With --template TYPE, print "
+                    "instead a machine file of that kinematics type with every key, its unit "
+                    "and what it means (the values of a built-in machine of that type), to "
+                    "save and edit: precontour machines --template TYPE > mymachine.toml")
+    kinematics = tuple(dict.fromkeys(m.kinematics for m in builtin_machines()))
+    machines.add_argument("--template", choices=kinematics, metavar="TYPE",
+                          help=f"kinematics type: {', '.join(kinematics)}")
+    machines.set_defaults(run=run_machines)
+
+    lcnc = commands.add_parser(
+        "linuxcnc-config", help="write a LinuxCNC configuration for running run's outputs",
+        description="Write a LinuxCNC configuration folder for the machine: INI with the "
+                    "machine file's limits (A, B, C in degrees) and servo period, HAL for "
+                    "the G-code path (joints looped back as in LinuxCNC's sims; the machine's "
+                    "kinematics module with its offsets on the LinuxCNC trunnion types, "
+                    "trivkins otherwise) and for the halstreamer stream, and a headless "
+                    "display. An existing folder is replaced only if it holds such a "
+                    "configuration.")
+    lcnc.add_argument("--machine", required=True,
+                      help="built-in machine name or machine TOML file (`precontour machines` "
+                           "lists the built-in ones)")
+    lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+                      help="configuration folder")
+    lcnc.set_defaults(run=run_linuxcnc_config)
     return parser
+
+
+def _machines_epilog() -> str:
+    """The built-in machines and their controllers, for the help of run and export."""
+    entries = [f"{m.name} ({m.kinematics}, axes {''.join(m.axes)}; controllers "
+               f"{', '.join(name for name, _ in m.controllers)})" for m in builtin_machines()]
+    return ("Built-in machines (--machine NAME): " + "; ".join(entries) + ". A machine file "
+            "names its own controllers. `precontour machines` lists the built-in machines; "
+            "`precontour machines --template TYPE` prints a machine file to start from.")
+
+
+def _add_machine_options(parser: argparse.ArgumentParser, *, required: bool = False,
+                         controller: object = DEFAULT_CONTROLLER,
+                         machine_help: str = "built-in machine name or machine TOML file"
+                         ) -> None:
+    """``--machine`` and ``--controller``, declared here for every command.
+
+    ``required``: no default machine. ``run`` and ``export`` write programs for a machine, so
+    a machine the user did not name would be wrong silently. ``controller``: the default
+    controller name; :data:`REQUIRED` for none; ``""`` for an optional name (``export``
+    records it); ``None`` for no ``--controller`` option."""
+    hint = "`precontour machines` lists the built-in ones"
+    parser.add_argument("--machine", required=required,
+                        default=None if required else DEFAULT_MACHINE,
+                        help=f"{machine_help} (required; {hint})" if required else
+                             f"{machine_help} (default: {DEFAULT_MACHINE})")
+    if controller is None:
+        return
+    if controller is REQUIRED:
+        parser.add_argument("--controller", required=True,
+                            help=f"controller name in the machine file (required; {hint} "
+                                 "with their controllers)")
+    elif controller == "":
+        parser.add_argument("--controller", default="",
+                            help="controller name to record in the header (optional)")
+    else:
+        parser.add_argument("--controller", default=controller,
+                            help=f"controller name in the machine file (default: {controller})")
+
+
+def _add_planning_options(parser: argparse.ArgumentParser) -> None:
+    """The options of planning a trajectory from a program, shared by trajectory and run."""
+    parser.add_argument("--tcp", action="store_true",
+                        help="G-code: the program starts in tool centre point mode (X Y Z "
+                             "the tool tip, A C the rotary axes), for controllers that switch "
+                             "it with an M code the machine file's [gcode] tcp_on does not "
+                             "name; the TCP-off M code ([gcode] tcp_off, default M429) still "
+                             "ends it, G49 and TRAFOOF do not")
+    parser.add_argument("--dwell", type=_nonnegative_float, default=DEFAULT_DWELL, metavar="S",
+                        help="hold the final position (and, for G-code, each M0/M1/M6 stop) "
+                             "this long so the drives settle inside the trajectory "
+                             f"(default {DEFAULT_DWELL:g} s)")
+    parser.add_argument("--corner-tol", type=_positive_float, default=DEFAULT_CORNER_TOLERANCE,
+                        metavar="MM",
+                        help="G-code: largest distance by which the blend of a corner between "
+                             "two blocks may leave the programmed path, where the program sets "
+                             "none (G64 P, G61); sharper corners are slowed for, or stopped at "
+                             f"(default {DEFAULT_CORNER_TOLERANCE:g} mm)")
+    parser.add_argument("--max-samples", type=_positive_int, default=None, metavar="N",
+                        help="refuse a trajectory of more samples, estimated before any is "
+                             "made (default: sized to this machine's memory, "
+                             f"{default_max_samples()} here)")
+
+
+def _add_report_option(parser: argparse.ArgumentParser, default: Path) -> None:
+    """``--report DIR`` of demo and compare, as for identify and run; ``--out`` is its old
+    spelling, kept."""
+    parser.add_argument("--report", "--out", dest="report", type=Path, default=default,
+                        metavar="DIR",
+                        help=f"report folder, created if missing (default: {default}; --out "
+                             "is the same option)")
 
 
 def _add_tol_option(parser: argparse.ArgumentParser) -> None:
@@ -406,7 +516,9 @@ def _add_tol_option(parser: argparse.ArgumentParser) -> None:
                              "command sample")
 
 
-def _tolerance(text: str) -> np.ndarray:
+def _tolerance(text: str):
+    from .toolpath.writers import axis_tolerances
+
     parts = text.split(",")
     if len(parts) > 2:
         raise argparse.ArgumentTypeError(f"give MM or MM,RAD, got {text!r}")
@@ -419,15 +531,8 @@ def _tolerance(text: str) -> np.ndarray:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _add_machine_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--machine", default="zhang2013",
-                        help="built-in machine name or machine TOML file (default: zhang2013)")
-    parser.add_argument("--controller", default="pid-low",
-                        help="controller name in the machine file (default: pid-low)")
-
-
-def _add_fit_options(parser: argparse.ArgumentParser, linear: float = DEFAULT_TOL_LINEAR,
-                     rotary: float = DEFAULT_TOL_ROTARY) -> None:
+def _add_fit_options(parser: argparse.ArgumentParser, linear: float = FIT_TOL_LINEAR,
+                     rotary: float = FIT_TOL_ROTARY) -> None:
     parser.add_argument("--tol-linear", type=_positive_float, default=linear,
                         metavar="MM", help=f"spline fit tolerance of X, Y, Z in mm (default {linear:g})")
     parser.add_argument("--tol-rotary", type=_positive_float, default=rotary,
@@ -439,7 +544,7 @@ def _number(text: str, *, allow_zero: bool) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (np.isfinite(value) and (value > 0 or (allow_zero and value == 0))):
+    if not (math.isfinite(value) and (value > 0 or (allow_zero and value == 0))):
         kind = "number >= 0" if allow_zero else "positive number"
         raise argparse.ArgumentTypeError(f"must be a {kind}, got {text!r}")
     return value
@@ -472,6 +577,14 @@ def _positive_int(text: str) -> int:
 
 
 def run_predict(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .compensation.pieces import predict_program
+    from .machine.drives import AXES
+    from .machine.machine_file import load_machine
+    from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
+                         write_columns)
+
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
@@ -502,6 +615,13 @@ def run_predict(args: argparse.Namespace) -> int:
 
 
 def run_trajectory(args: argparse.Namespace) -> int:
+    from .machine.machine_file import load_machine
+    from .tables import check_output_table, trajectory_columns, write_columns
+    from .toolpath import read_program, read_toolpath, toolpath_format
+    from .trajectory.builtin_paths import builtin_path
+    from .trajectory.generate import generate_trajectory, summarize
+    from .trajectory.program import program_trajectory
+
     start = time.perf_counter()
     inputs = input_files(args.toolpath, args.machine)
     check_output_table(args.output, inputs)
@@ -535,6 +655,13 @@ def run_trajectory(args: argparse.Namespace) -> int:
 
 
 def run_compensate(args: argparse.Namespace) -> int:
+    from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program
+    from .machine.controllers import is_closed_loop
+    from .machine.machine_file import load_machine
+    from .simulation.ensemble import ensemble_actual
+    from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
+    from .workflow import compensate_keeping_limits
+
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
@@ -617,6 +744,8 @@ def run_compensate(args: argparse.Namespace) -> int:
 def learning_controller(machine, controller, name: str | None):
     """The controller the virtual machine runs when ``compensate`` learns: ``name`` when
     given, else a closed loop's (``tf``) ``base``, else ``controller`` itself."""
+    from .machine.controllers import is_closed_loop
+
     if name is not None:
         return machine.controller(name)
     if is_closed_loop(controller) and controller.base is not None:
@@ -625,6 +754,15 @@ def learning_controller(machine, controller, name: str | None):
 
 
 def run_simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .machine.drives import AXES
+    from .machine.machine_file import load_machine
+    from .prediction.contour import ReferencePath, contour_errors
+    from .simulation.virtual_machine import simulate
+    from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference,
+                         read_trajectory, write_columns)
+
     start = time.perf_counter()
     inputs = input_files(args.commands, args.reference, args.machine)
     check_output_table(args.output, inputs)
@@ -673,7 +811,7 @@ def run_demo(args: argparse.Namespace) -> int:
     paths = tuple(name.strip() for name in args.paths.split(",") if name.strip())
     progress = ProgressLine(sys.stderr)
     try:
-        result = demo_run(args.out, paths=paths, iterations=args.iterations, progress=progress)
+        result = demo_run(args.report, paths=paths, iterations=args.iterations, progress=progress)
     finally:
         progress.close()
     print(f"contour errors on {result.machine.name}: tool tip in um, orientation in mrad "
@@ -691,7 +829,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
     progress = ProgressLine(sys.stderr)
     try:
-        result = compare_run(args.out, builtin=args.builtin, trajectory=args.trajectory,
+        result = compare_run(args.report, builtin=args.builtin, trajectory=args.trajectory,
                              machine=args.machine, iterations=args.iterations,
                              model_errors=(() if args.model_error == 0 else
                                            (args.model_error / 100, -args.model_error / 100)),
@@ -711,11 +849,19 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def run_identify(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .identification import identify, read_servo_log
+    from .machine.machine_file import load_machine, machine_data
+    from .tables import write_text
+
     start = time.perf_counter()
     inputs = input_files(args.log, args.machine)
-    check_outputs([args.output], inputs)
+    outputs = OutputSet(inputs)   # the machine file and the report: checked now, written as one
+    outputs.file(args.output)
     if args.report is not None:
-        check_report_folder(args.report, (), inputs, what="identification report")
+        from .reports.identify_report import IDENTIFY_REPORT_FILES
+        outputs.folder(args.report, IDENTIFY_REPORT_FILES, what="identification report")
     base = load_machine(args.machine)
     data, _ = machine_data(args.machine)
     columns = None if args.columns is None else args.columns.split(",")
@@ -724,7 +870,11 @@ def run_identify(args: argparse.Namespace) -> int:
                          angle_scale=np.pi / 180 if args.angles == "deg" else 1.0)
     result = identify(log, base, data, name=args.name, order=args.order,
                       base_controller=args.base_controller)
-    write_text(args.output, result.text, inputs=inputs)
+    with outputs:
+        write_text(args.output, result.text, inputs=inputs)
+        if args.report is not None:
+            from .reports.identify_report import write_identify_report
+            index = write_identify_report(result, args.report)
     print(f"identified {len(result.axes)} axis/axes of {base.name} from {args.log} "
           f"({log.n_samples} samples, {log.period * 1e3:.6g} ms); base controller "
           f"{result.base_controller.name}")
@@ -732,8 +882,6 @@ def run_identify(args: argparse.Namespace) -> int:
     for note in result.notes.values():
         print(note)
     if args.report is not None:
-        from .reports.identify_report import write_identify_report
-        index = write_identify_report(result, args.report)
         print(f"report: {index}")
     print(f"wrote {args.output} (controller {args.name!r}, type tf) in "
           f"{time.perf_counter() - start:.1f} s")
@@ -742,6 +890,8 @@ def run_identify(args: argparse.Namespace) -> int:
 
 def format_identification_table(result) -> str:
     """The printed per-axis table of an identification."""
+    import numpy as np
+
     lines = ["axis  order  fit % max|e|  held-out %   bandwidth Hz (base)  slowest pole rad/s (base)"]
     for row in result.summary_rows():
         slow = row["poles"][np.argmax(row["poles"].real)]
@@ -761,15 +911,21 @@ def format_identification_table(result) -> str:
 
 
 def run_excite(args: argparse.Namespace) -> int:
+    from .identification import excitation_trajectory, write_excitation
+    from .identification.excitation import check_excitation_output
+    from .machine.drives import AXES, ROTARY_AXES
+    from .machine.machine_file import load_machine
+
     start = time.perf_counter()
-    check_outputs([args.output], input_files(args.machine))
+    check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
     axes = tuple(dict.fromkeys(args.axes.upper()))
     unknown = [a for a in axes if a not in AXES]
     if unknown or not axes:
         raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
                          field="axes")
-    travel = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
+    given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
+    travel = {a: value for a, value in given.items() if value is not None}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
     write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
@@ -797,21 +953,27 @@ def run_run(args: argparse.Namespace) -> int:
     from .workflow import RunOutputs, run_program, write_run_outputs
 
     start = time.perf_counter()
+    report_files = ()
+    if args.report is not None:
+        from .reports.run_report import RUN_REPORT_FILES as report_files
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
-                         report=args.report)
+                         report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
     progress = ProgressLine(sys.stderr)
     try:
         result = run_program(args.program, outputs, machine=args.machine,
-                             controller=args.controller, tcp=args.tcp,
+                             controller=args.controller, tcp=args.tcp, dwell=args.dwell,
+                             corner_tolerance=args.corner_tol, max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn)
         files = []
-        if args.report is not None:
-            from .reports.run_report import write_run_report
-            progress(4, 4, f"report {args.report}")
-            files += write_run_report(result, args.report)
-        files = write_run_outputs(result, outputs, inputs) + files
+        # -o, --stream, --commands and the report replace the old files together, or none
+        with outputs.output_set(inputs):
+            if args.report is not None:
+                from .reports.run_report import write_run_report
+                progress(4, 4, f"report {args.report}")
+                files += write_run_report(result, args.report)
+            files = write_run_outputs(result, outputs, inputs) + files
     finally:
         progress.close()
     print(f"{args.program} on {result.machine.name}, controller {args.controller}: "
@@ -821,6 +983,54 @@ def run_run(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(f) for f in files[:4])}"
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def run_machines(args: argparse.Namespace) -> int:
+    if args.template is not None:
+        from .machine.template import machine_template
+        sys.stdout.write(machine_template(args.template))
+        return 0
+    print(format_machines_table(builtin_machines()))
+    return 0
+
+
+def format_machines_table(machines) -> str:
+    """The table of ``precontour machines``: one row per machine and controller type."""
+    rows = [("machine", "kinematics", "axes", "servo", "controllers (type)")]
+    for m in machines:
+        by_type: dict[str, list[str]] = {}
+        for name, kind in m.controllers:
+            by_type.setdefault(kind, []).append(name)
+        groups = [f"{', '.join(names)} ({kind})" for kind, names in by_type.items()]
+        for i, group in enumerate(groups):
+            rows.append((m.name, m.kinematics, " ".join(m.axes), f"{m.servo_period * 1e3:g} ms",
+                         group) if i == 0 else ("", "", "", "", group))
+    widths = [max(len(row[k]) for row in rows) for k in range(4)]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:4], widths)) + "  " + row[4]
+             for row in rows]
+    lines.append("")
+    lines += [f"{m.name}: {m.description}" for m in machines]
+    lines.append("")
+    lines += textwrap.wrap(
+        "Use one with --machine NAME --controller NAME; `precontour machines --template TYPE` "
+        "prints an annotated machine file of that kinematics type "
+        f"({', '.join(dict.fromkeys(m.kinematics for m in machines))}) to start your own "
+        "from.", 99, break_on_hyphens=False)
+    return "\n".join(lines)
+
+
+
+def run_linuxcnc_config(args: argparse.Namespace) -> int:
+    from .machine.machine_file import load_machine
+    from .toolpath.linuxcnc import check_config_folder, write_linuxcnc_config
+
+    check_config_folder(args.output)
+    machine = load_machine(args.machine)
+    files = write_linuxcnc_config(machine, args.output)
+    print(f"LinuxCNC configuration for {machine.name} ({len(files)} files) in {args.output}: "
+          f"linuxcnc {args.output / 'machine.ini'} runs G-code; halrun -I -f "
+          f"{args.output / 'stream.hal'} then halstreamer -c 0 FILE runs a --stream file")
     return 0
 
 
@@ -835,6 +1045,8 @@ def _summary_line(s: dict) -> str:
 
 def _axis_table(knots, max_abs_e) -> str:
     """Per-axis table: knots (when given) and max |e| in um or mrad."""
+    from .machine.drives import AXES, ROTARY_AXES
+
     lines = ["axis  knots      max|e|" if knots is not None else "axis      max|e|"]
     for i, (axis, value) in enumerate(zip(AXES, max_abs_e)):
         unit = "mrad" if axis in ROTARY_AXES else "um"

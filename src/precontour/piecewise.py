@@ -9,9 +9,10 @@ curves of the contour-error search both evaluate millions of points this way; sc
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
+
+from .kernels import jit, run_chunks
 
 #: Pieces or points per task of the compiled loops.
 _CHUNK = 4096
@@ -71,34 +72,39 @@ def interpolating_spline(x: np.ndarray, y: np.ndarray, k: int = 5) -> BSpline:
     half = (k + 1) // 2
     knots = np.concatenate([np.full(k + 1, x[0]), x[half:-half], np.full(k + 1, x[-1])])
     values = np.ascontiguousarray(y.reshape(n, -1))
-    coef = _collocation_pieces(x, values, k, FIT_POINTS, FIT_OVERLAP)
+    coef = np.empty_like(values)
+    run_chunks(_collocation_pieces, (n + FIT_POINTS - 1) // FIT_POINTS, np.ascontiguousarray(x),
+               values, int(k), FIT_POINTS, FIT_OVERLAP, coef)
     return BSpline.construct_fast(knots, coef.reshape(y.shape), k)
 
 
-@numba.njit(cache=True, parallel=True)
-def _collocation_pieces(x, y, k, points, overlap):
-    """Coefficients of the not-a-knot interpolant, piece by piece: a piece's knots are the
-    whole curve's from its (k+1)-th on, so its coefficient j is the curve's lo + j."""
+@jit
+def _collocation_pieces(first, stop, x, y, k, points, overlap, coef):
+    """Coefficients of the not-a-knot interpolant, pieces [first, stop) of ``points`` data
+    points: a piece's knots are the whole curve's from its (k+1)-th on, so its coefficient j
+    is the curve's lo + j."""
     n = x.size
-    coef = np.empty_like(y)
-    for piece in numba.prange((n + points - 1) // points):
+    for piece in range(first, stop):
         start = piece * points
-        stop = min(n, start + points)
+        end = min(n, start + points)
         lo = max(0, start - overlap)
-        hi = min(n, stop + overlap)
+        hi = min(n, end + overlap)
         local = _not_a_knot_coefficients(x[lo:hi], y[lo:hi], k)
-        coef[start:stop] = local[start - lo:stop - lo]
-    return coef
+        for i in range(start, end):      # (loops: a slice assignment compiles a shape check)
+            for d in range(y.shape[1]):
+                coef[i, d] = local[i - lo, d]
 
 
-@numba.njit(cache=True, inline="always")
+@jit
 def _not_a_knot_coefficients(x, y, k):
     m = x.size
     half = (k + 1) // 2
     knots = np.empty(m + k + 1)
-    knots[:k + 1] = x[0]
-    knots[k + 1:m] = x[half:m - half]
-    knots[m:] = x[m - 1]
+    for i in range(k + 1):
+        knots[i] = x[0]
+        knots[m + i] = x[m - 1]
+    for i in range(k + 1, m):
+        knots[i] = x[i - k - 1 + half]
     band = np.zeros((m, 2 * k + 1))      # band[i, j - i + k] = A[i, j]
     basis = np.empty(k + 1)
     left = np.empty(k + 1)
@@ -151,20 +157,30 @@ def evaluate(breaks: np.ndarray, coef: np.ndarray, x, nu: int = 0, dims: slice =
         raise ValueError(f"dims must be a non-empty contiguous slice, got {dims}")
     if not 0 <= nu:
         raise ValueError(f"the derivative order must be >= 0, got {nu}")
-    out = _evaluate_points(breaks, coef, np.ascontiguousarray(x.ravel()), int(nu), first,
-                           stop - first)
+    points = np.ascontiguousarray(x.ravel())
+    out = np.empty((points.size, stop - first))
+    run_chunks(_evaluate_points, (points.size + _CHUNK - 1) // _CHUNK, breaks, coef, points,
+               int(nu), first, out)
     return out.reshape(x.shape + (stop - first,))
 
 
-@numba.njit(cache=True, parallel=True)
 def _taylor_coefficients(knots, control, degree, breaks, spans):
     """Taylor coefficients / m! of a B-spline at the left end of each piece, highest power
     first: the derivatives' control points by differencing (Piegl & Tiller, The NURBS Book,
     A3.3) on the bases of every degree from one Cox-de Boor triangle (A2.2)."""
+    pieces = breaks.size - 1
+    coef = np.empty((pieces, degree + 1, control.shape[1]))
+    run_chunks(_taylor_chunks, (pieces + _CHUNK - 1) // _CHUNK, knots, control, int(degree),
+               breaks, spans, coef)
+    return coef
+
+
+@jit
+def _taylor_chunks(first, stop, knots, control, degree, breaks, spans, coef):
+    """:func:`_taylor_coefficients` of the pieces of chunks [first, stop)."""
     dims = control.shape[1]
     pieces = breaks.size - 1
-    coef = np.empty((pieces, degree + 1, dims))
-    for chunk in numba.prange((pieces + _CHUNK - 1) // _CHUNK):
+    for chunk in range(first, stop):
         basis = np.zeros((degree + 1, degree + 1))   # basis[q, r] = N_{span-q+r, q}(x)
         left = np.zeros(degree + 1)
         right = np.zeros(degree + 1)
@@ -172,10 +188,9 @@ def _taylor_coefficients(knots, control, degree, breaks, spans):
         for j in range(chunk * _CHUNK, min(pieces, (chunk + 1) * _CHUNK)):
             taylor_coefficients_at(knots, control, degree, breaks[j], spans[j], basis, left,
                                    right, points, coef, j)
-    return coef
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline="always")
 def taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, points, out,
                            piece):
     """Taylor coefficients / m! at x (see _taylor_coefficients), into out[piece, degree - m]
@@ -211,7 +226,7 @@ def taylor_coefficients_at(knots, control, degree, x, span, basis, left, right, 
             out[piece, degree - m, d] = total / factorial
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline="always")
 def locate(breaks, x, hint):
     """Index of the piece containing x (breaks[piece] <= x < breaks[piece + 1]; the end
     pieces beyond the ends): ``hint`` or its successor when x is there, else bisection."""
@@ -232,7 +247,7 @@ def locate(breaks, x, hint):
     return lo
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline="always")
 def derivative(coef, piece, s, nu, d):
     """The nu-th derivative of dimension d of ``piece`` at local coordinate s (Horner's
     scheme on the derivative's coefficients)."""
@@ -249,15 +264,14 @@ def derivative(coef, piece, s, nu, d):
     return total
 
 
-@numba.njit(cache=True, parallel=True)
-def _evaluate_points(breaks, coef, x, nu, first, count):
+@jit
+def _evaluate_points(first_chunk, stop_chunk, breaks, coef, x, nu, first, out):
     n = x.size
-    out = np.empty((n, count))
-    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+    count = out.shape[1]
+    for chunk in range(first_chunk, stop_chunk):
         piece = 0
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             piece = locate(breaks, x[i], piece)
             s = x[i] - breaks[piece]
             for d in range(count):
                 out[i, d] = derivative(coef, piece, s, nu, first + d)
-    return out

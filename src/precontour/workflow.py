@@ -16,7 +16,7 @@ import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -25,23 +25,24 @@ import numpy as np
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
                                          learn_within_limits)
+from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, EXPORT_FORMATS,
+                       default_max_samples)
 from .errors import InputError, MachineLimitError, notice
+from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors
 from .simulation.ensemble import MachineEnsemble, ensemble_actual
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
-from .toolpath import EXTENSIONS, read_program, read_toolpath, toolpath_format
+from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
 from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
-from .trajectory.program import program_trajectory
-from .trajectory.limits import AxisLimits, check_limits
+from .trajectory.program import check_program_samples, program_trajectory
+from .trajectory.limits import AxisLimits, check_limits, check_travel
 from .trajectory.sampled import Trajectory
 
-#: Formats of ``precontour export``.
-EXPORT_FORMATS: tuple[str, ...] = ("gcode", "halstreamer", "csv", "npz", "parquet")
 #: Extensions a G-code output may have (those the readers take as G-code).
 GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
 #: Relative difference between a command file's sampling period and the machine's servo
@@ -58,45 +59,139 @@ PARALLEL_MIN_SAMPLES = 20_000_000
 Progress = Callable[[int, int, str], None]
 
 
-def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False
+def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False,
+                            dwell: float = DEFAULT_DWELL,
+                            corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                            max_samples: int | None = None
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program, and its non-motion lines to keep (or None).
 
-    The one place ``run`` reads its input. G-code is read as a CNC executes it
+    The one place ``run`` reads its input (:func:`read_run_program`, then
+    :func:`plan_run_program`). G-code is read as a CNC executes it
     (:func:`~precontour.toolpath.read_program`, then
     :func:`~precontour.trajectory.program_trajectory` at the machine's servo period): the
     trajectory carries the source line of every sample, and the program's pass-through lines
     (tool change, spindle, coolant, comments) come back for the output program. ``tcp`` puts
     the whole program in tool centre point mode. CL data (CSV, APT) gives the tool tip
-    already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory` and
-    has no lines to keep.
+    already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory`, its
+    samples carry the file line of the CL point they move to, and it has no lines to keep.
+    ``dwell``, ``corner_tolerance`` (G-code only) and ``max_samples`` (default
+    :func:`~precontour.defaults.default_max_samples`) are the planning options of the
+    ``trajectory`` command.
     """
+    source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples)
+    return plan_run_program(source, machine, dwell=dwell, corner_tolerance=corner_tolerance,
+                            max_samples=max_samples)
+
+
+@dataclass(frozen=True)
+class RunProgram:
+    """A program as ``run`` read it: a G-code ``program`` (``tcp``: read with ``--tcp``) or
+    CL data (``toolpath``, the :func:`~precontour.toolpath.read_toolpath_report`)."""
+
+    path: Path
+    program: object | None = None
+    toolpath: object | None = None
+    tcp: bool = False
+
+
+def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
+                     dwell: float = DEFAULT_DWELL, max_samples: int | None = None) -> RunProgram:
+    """Read and check ``run``'s input, before any progress is shown: every error in the file
+    comes first, and for G-code also a trajectory too long to make (the sample estimate of
+    :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``)."""
     if toolpath_format(path) == "gcode":
         program = read_program(path, machine, tcp=tcp)
         for text in program.notices:
             notice(text)
-        # the output gives machine axes: lines that switch TCP mode on or off stay comments
-        passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp, tcp_all=tcp)
-        return program_trajectory(program, machine, ts=machine.servo_period), passthrough
+        check_program_samples(program, machine, ts=machine.servo_period, dwell=dwell,
+                              max_samples=max_samples)
+        return RunProgram(Path(path), program=program, tcp=tcp)
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")
-    toolpath = read_toolpath(path, machine=machine)
-    return generate_trajectory(toolpath, machine, ts=machine.servo_period), None
+    return RunProgram(Path(path), toolpath=read_toolpath_report(path, machine=machine))
+
+
+def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
+                     corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                     max_samples: int | None = None
+                     ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
+    """The planned trajectory of a program read by :func:`read_run_program`, and its
+    non-motion lines to keep (None for CL data)."""
+    max_samples = default_max_samples() if max_samples is None else int(max_samples)
+    if source.program is not None:
+        program = source.program
+        # the output gives machine axes: lines that switch TCP mode on or off stay comments
+        passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp,
+                                               tcp_all=source.tcp)
+        return program_trajectory(program, machine, ts=machine.servo_period, dwell=dwell,
+                                  tolerance=corner_tolerance,
+                                  max_samples=max_samples), passthrough
+    report = source.toolpath
+    return generate_trajectory(report.toolpath, machine, ts=machine.servo_period, dwell=dwell,
+                               max_samples=max_samples, lines=report.lines), None
 
 
 @dataclass(frozen=True)
 class RunOutputs:
     """Where ``run`` writes: the G-code program, and optionally a halstreamer file, the
-    command table and a report folder."""
+    command table and a report folder with the files ``report_files`` (the report's own
+    names, checked against the inputs and the other outputs before computing)."""
 
     program: Path
     stream: Path | None = None
     commands: Path | None = None
     report: Path | None = None
+    report_files: tuple[str, ...] = ()
 
     def files(self) -> list[Path]:
         return [p for p in (self.program, self.stream, self.commands) if p is not None]
+
+    def output_set(self, inputs: Sequence[str | Path]) -> OutputSet:
+        """The outputs as one :class:`~precontour.files.OutputSet`, each checked now: written
+        inside ``with`` it, they replace the old files together or not at all."""
+        return check_run_outputs(self, inputs)
+
+
+@dataclass(frozen=True)
+class LargestError:
+    """Where a simulated contour error of ``run`` is largest: the sample's time and the
+    source line executing there.
+
+    ``quantity``: ``"tip"`` (``value`` in mm) or ``"orientation"`` (rad); ``commands``:
+    ``"compensated"`` or ``"uncompensated"``; ``line``: the G-code line, or the file line of
+    the CL row the tool is moving to (None when the trajectory carries no lines); ``where``:
+    how the source names it, ``"line"`` (G-code) or ``"row"`` (CL data, as its readers'
+    messages do). An error that is zero throughout (no rotary motion) is at no line."""
+
+    quantity: str
+    commands: str
+    value: float
+    time: float
+    index: int
+    line: int | None
+    where: str = "line"
+
+    @property
+    def unit(self) -> str:
+        return "um" if self.quantity == "tip" else "mrad"
+
+    def format(self) -> str:
+        """``tip, compensated  0.412 um  line 57  t = 12.345 s``, in columns."""
+        at = f"{self.where} {self.line}" if self.line is not None and self.value > 0 else "-"
+        digits = 3 if self.quantity == "tip" else 4
+        return (f"{self.quantity + ', ' + self.commands:<28}{1e3 * self.value:10.{digits}f} "
+                f"{self.unit:<5}{at:>12}   t = {self.time:.3f} s")
+
+
+def largest_error(errors: np.ndarray, t: np.ndarray, line: np.ndarray | None, *,
+                  quantity: str, commands: str, where: str = "line") -> LargestError:
+    """The :class:`LargestError` of one error signal (the first sample of its maximum)."""
+    k = int(np.argmax(errors))
+    return LargestError(quantity=quantity, commands=commands, value=float(errors[k]),
+                        time=float(t[k]), index=k,
+                        line=None if line is None else int(line[k]), where=where)
 
 
 @dataclass(frozen=True)
@@ -119,6 +214,7 @@ class RunResult:
     program: GcodeProgram
     tolerance: np.ndarray
     timings: dict = field(default_factory=dict)
+    stream: Path | None = None
 
     @property
     def commands(self) -> Trajectory:
@@ -131,6 +227,18 @@ class RunResult:
     @property
     def predicted_after(self) -> ContourErrors:
         return self.limited.result.after
+
+    def largest_errors(self) -> tuple[LargestError, ...]:
+        """Where the simulated tip and orientation errors are largest: with the compensated
+        commands (what remains), then with the uncompensated ones. Samples are those of
+        ``limited.reference`` (the timing after any slow-down), lines ``limited.line``."""
+        t, line = self.limited.reference.t, self.limited.line
+        where = "line" if toolpath_format(self.source) == "gcode" else "row"
+        return tuple(largest_error(getattr(errors, quantity), t, line, quantity=quantity,
+                                   commands=commands, where=where)
+                     for commands, errors in (("compensated", self.simulated_after),
+                                              ("uncompensated", self.simulated_before))
+                     for quantity in ("tip", "orientation"))
 
     def table(self) -> str:
         """The end-of-run table: contour errors before and after, duration, blocks."""
@@ -151,6 +259,8 @@ class RunResult:
                                       self.simulated_after.orientation)):
             lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
                          f"mean {_reduction(before.mean(), after.mean())}")
+        lines.append("largest simulated errors, where:")
+        lines += ["  " + largest.format() for largest in self.largest_errors()]
         duration = self.commands.duration
         planned = self.planned.duration
         slow = self.limited.slowdowns
@@ -189,26 +299,37 @@ class RunResult:
         lines.append(f"blocks written {self.program.n_blocks} (tolerance "
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")
+        lines.append(self.linuxcnc_line())
         return "\n".join(lines)
+
+    def linuxcnc_line(self) -> str:
+        """Which output to run on LinuxCNC, in one line (measured: docs/linuxcnc.md)."""
+        stream = str(self.stream) if self.stream is not None else "write it with --stream FILE"
+        rotary = " or ".join(self.machine.axis_names[3:])
+        moving, blocks = self.program.rotary_blocks, self.program.n_blocks
+        if moving:
+            return (f"for LinuxCNC: run the stream ({stream}); LinuxCNC 2.9's planner "
+                    f"stretches the {moving} of {blocks} G-code blocks that move {rotary} "
+                    "(docs/linuxcnc.md)")
+        return (f"for LinuxCNC: no G-code block moves {rotary}, and its planner keeps their "
+                f"timing at a steady feed; the stream ({stream}) keeps it everywhere "
+                "(docs/linuxcnc.md)")
 
 
 def _reduction(before: float, after: float) -> str:
     return f"{100 * (1 - after / before):.1f} %" if before > 0 else "-"
 
 
-def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None:
+def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> OutputSet:
     """Refuse, before computing, outputs that cannot be written or would overwrite an input
-    or each other."""
-    check_output_path(outputs.program, inputs=inputs, suffixes=GCODE_SUFFIXES)
+    or each other (the report's files included); return them as an
+    :class:`~precontour.files.OutputSet`."""
+    out = OutputSet(inputs)
+    out.file(outputs.program, suffixes=GCODE_SUFFIXES)
     if outputs.stream is not None:
-        check_output_path(outputs.stream, inputs=inputs)
+        out.file(outputs.stream)
     if outputs.commands is not None:
-        check_output_path(outputs.commands, inputs=inputs, suffixes=SUPPORTED_SUFFIXES)
-    paths = outputs.files()
-    resolved = [p.resolve() for p in paths]
-    for i, path in enumerate(resolved):
-        if path in resolved[:i]:
-            raise InputError("the same file is named for two outputs", source=str(paths[i]))
+        out.file(outputs.commands, suffixes=SUPPORTED_SUFFIXES)
     if outputs.report is not None:
         report = outputs.report
         if report.exists() and not report.is_dir():
@@ -219,16 +340,23 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> None
         for source in inputs:
             if Path(source).resolve() == report.resolve():
                 raise InputError("the report folder is an input", source=str(report))
+        out.folder(report, outputs.report_files, what="report")
+    return out
 
 
-def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path = "zhang2013",
-                controller: str = "pid-low", tcp: bool = False, iterations: int = 1,
+def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path,
+                controller: str, tcp: bool = False, dwell: float = DEFAULT_DWELL,
+                corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int = 0,
                 ensemble: MachineEnsemble | None = None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``learn``: passes of learning against the realistic virtual machine after the
-    compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
+    writes. ``machine`` (a built-in name or a machine file) and ``controller`` have no
+    default: a program compensated for another machine than the user's is wrong silently.
+    ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``: planning, as
+    :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
+    virtual machine after the compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
     0: none; skipped, with a notice, for a program not sampled at the servo period or longer
     than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
     draws of ``ensemble`` (default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
@@ -244,17 +372,24 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     total = 4
 
     def step(done: int, message: str) -> None:
+        check_signals()  # between stages: where a SIGTERM or Ctrl-C stops the run
         if progress is not None:
             progress(done, total, message)
 
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
     check_run_outputs(outputs, inputs)
     tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    step(0, f"read and plan {program}")
     start = time.perf_counter()
+    # every input is read and checked before the first progress line, so that a bad one
+    # is the first thing said
     machine_obj = load_machine(machine)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
-    planned, passthrough = load_program_trajectory(program, machine_obj, tcp=tcp)
+    source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
+                              max_samples=max_samples)
+    step(0, f"plan {program}")
+    planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
+                                            corner_tolerance=corner_tolerance,
+                                            max_samples=max_samples)
     line = getattr(planned, "line", None)
     timings["plan"] = time.perf_counter() - start
 
@@ -307,7 +442,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     return RunResult(source=str(program), machine=machine_obj, controller=controller,
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
-                     program=program_text, tolerance=tolerance, timings=timings)
+                     program=program_text, tolerance=tolerance, timings=timings,
+                     stream=outputs.stream)
 
 
 def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
@@ -381,23 +517,30 @@ def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,
                       inputs: Sequence[str | Path]) -> list[Path]:
-    """Write the program and the optional stream and command files (each atomically)."""
+    """Write the program and the optional stream and command files as one set
+    (:class:`~precontour.files.OutputSet`: all replace the old files, or none does; inside
+    an outer set, e.g. with the report, with that one)."""
     commands = result.commands
     final = check_limits(commands.q, commands.ts, AxisLimits.from_machine(result.machine))
     if not final.ok:  # compensate_within_limits guarantees it; this guards the writing
         raise MachineLimitError("refusing to write commands beyond the machine's limits: "
                                 + final.format())
-    written = [write_text(outputs.program, result.program.text, inputs=inputs)]
     info = ProgramInfo(machine=result.machine.name, controller=result.controller,
                        method="contour pre-compensation within axis limits",
                        source=result.source)
-    if outputs.stream is not None:
-        written.append(write_text(outputs.stream, halstreamer_lines(commands.q, commands.ts,
-                                                                    info=info),
-                                  inputs=inputs))
-    if outputs.commands is not None:
-        written.append(write_columns(outputs.commands, trajectory_columns(commands),
-                                     inputs=inputs))
+    with outputs.output_set(inputs):
+        written = [write_text(outputs.program, result.program.text, inputs=inputs)]
+        if outputs.stream is not None:
+            written.append(write_text(outputs.stream,
+                                      halstreamer_lines(commands.q, commands.ts, info=info),
+                                      inputs=inputs))
+        if outputs.commands is not None:
+            # with the source line of each sample, where known: what the table's largest
+            # errors name can be looked up in it
+            table = commands if result.limited.line is None else replace(
+                commands, line=result.limited.line)
+            written.append(write_columns(outputs.commands, trajectory_columns(table),
+                                         inputs=inputs))
     return written
 
 
@@ -428,11 +571,12 @@ def export_format(path: Path, format: str | None) -> str:
 
 
 def export_commands(commands_path: str | Path, output: str | Path, *, format: str | None = None,
-                    machine: str | Path = "zhang2013", controller: str = "",
+                    machine: str | Path, controller: str = "",
                     tolerance: np.ndarray | None = None) -> ExportResult:
     """Write a command file (``t,X,Y,Z,A,C[,...]``) as G-code, a halstreamer file or a table.
 
-    G-code and halstreamer files are programs a machine runs: the commands must keep the
+    ``machine`` (built-in name or machine file) has no default: its limits decide what may be
+    written. G-code and halstreamer files are programs a machine runs: the commands must keep the
     machine's limits (checked first; :class:`~precontour.errors.MachineLimitError` names the
     worst excess otherwise), and a halstreamer file needs samples at the servo period.
     """
@@ -449,7 +593,10 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     machine_obj = load_machine(machine)
     if controller:
         machine_obj.controller(controller)  # an unknown name is an error, as elsewhere
-    check = check_limits(traj.q, traj.ts, AxisLimits.from_machine(machine_obj), t0=traj.t[0])
+    limits = AxisLimits.from_machine(machine_obj)
+    # each axis within its travel (the tilt axis within +-180 deg at most), named by row
+    check_travel(traj.q, limits, source=str(commands_path), axis_names=machine_obj.axis_names)
+    check = check_limits(traj.q, traj.ts, limits, t0=traj.t[0])
     if not check.ok:
         raise MachineLimitError(f"{commands_path}: the commands exceed the machine's limits "
                                 f"({check.format()}); `precontour run` slows such places down "
@@ -465,10 +612,15 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
         return ExportResult(output, format, traj.n_samples, None)
     program = gcode_program(traj.t, traj.q, tolerance=tolerance, info=info,
                             axis_names=machine_obj.axis_names)
+    if "\nG1 " not in program.text:
+        # dwells only: a program the G-code reader (and so run and trajectory) refuses
+        raise InputError("the commands do not move by more than the written decimals (1e-5 mm, "
+                         "1e-6 deg): no motion to write as G-code", source=str(commands_path))
     write_text(output, program.text, inputs=inputs)
     return ExportResult(output, format, traj.n_samples, program.n_blocks)
 
 
-__all__ = ["EXPORT_FORMATS", "RunOutputs", "RunResult", "ExportResult", "check_run_outputs",
-           "compensate_keeping_limits", "export_commands", "export_format", "learn_on_ensemble",
-           "load_program_trajectory", "run_program", "write_run_outputs"]
+__all__ = ["EXPORT_FORMATS", "LargestError", "RunOutputs", "RunProgram", "RunResult",
+           "ExportResult", "check_run_outputs", "compensate_keeping_limits", "largest_error",
+           "export_commands", "export_format", "learn_on_ensemble", "load_program_trajectory",
+           "plan_run_program", "read_run_program", "run_program", "write_run_outputs"]

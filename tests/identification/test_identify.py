@@ -73,3 +73,20 @@ def test_bad_name(machine, x_only_result):
     data, _ = machine_data("zhang2013")
     with pytest.raises(InputError, match="field 'name'"):
         identify(x_only_result.log, machine, data, name="has space")
+
+
+def test_currents_that_do_not_fit_the_motion_name_the_log_and_the_column(machine):
+    """Currents of the wrong sign give a negative inertia: an error naming the log and I_X,
+    not the identified machine file's [drives.X] J."""
+    import dataclasses
+    import warnings
+
+    log, _ = make_log(machine, machine, ("X",), travel=SHORT_TRAVEL, currents=True)
+    flipped = dataclasses.replace(log, source="log.csv", current={"X": -log.current["X"]})
+    data, _ = machine_data("zhang2013")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match=r"^log.csv, field 'I_X': the motor current of X "
+                                             r"does not fit its motion: it gives an inertia "
+                                             r"J = -[0-9.e-]+ kg m\^2 \(must be > 0\)"):
+            identify(flipped, machine, data, base_controller="pid-high")

@@ -174,3 +174,31 @@ def test_structured_garbage_raises_only_our_errors(tmp_path, lines, header, sep)
                        default_period=1e-3)
     except PrecontourError as exc:
         assert "\n" not in str(exc)
+
+
+def test_text_logs_are_refused_at_the_first_bad_line_without_reading_on(tmp_path):
+    from precontour.identification.servo_log import MAX_LINE_BYTES
+    path = tmp_path / "log.txt"
+    good = "".join(f"{k} {k * 1e-3} {k * 1e-3}\n" for k in range(30))
+    path.write_bytes(good.encode() + b"1 " * MAX_LINE_BYTES + b"\n" + good.encode())
+    with pytest.raises(InputError, match=rf"log.txt, row 31: line longer than {MAX_LINE_BYTES} "
+                                         r"bytes: not a servo log"):
+        read_servo_log(path, fmt="halsampler", columns=["n", "X", "X_act"])
+    path.write_bytes(good.encode() + b"\x00" * 100)
+    with pytest.raises(InputError, match=r"log.txt, row 31: binary data, not a text log"):
+        read_servo_log(path, fmt="halsampler", columns=["n", "X", "X_act"])
+    path.write_bytes(b"\x1f\x8b" + good.encode())
+    with pytest.raises(InputError, match=r"log.txt: gzip-compressed"):
+        read_servo_log(path, fmt="halsampler", columns=["n", "X", "X_act"])
+    path.write_bytes(b"Sampling period is 1000000 ns\n" + b"\xff\xfe" + b"X;X_act\n")
+    with pytest.raises(InputError, match=r"log.txt, row 2: not a text file \(invalid UTF-8\)"):
+        read_servo_log(path)
+
+
+def test_zero_currents_are_refused_naming_the_column(tmp_path):
+    cols = _columns(currents=True)
+    cols["I_Y"] = np.zeros(N)
+    path = write_columns(tmp_path / "log.csv", cols)
+    with pytest.raises(InputError, match=r"log.csv, field 'I_Y': the motor current of Y is zero "
+                                         r"on every row \(not recorded\?\)"):
+        read_servo_log(path)

@@ -63,6 +63,25 @@ def _edit(text, old, new):
     ("X = { kp = 30.000,", "X = { kpp = 30.000,", r"\[controllers.pid-high.X\] kp: missing key"),
     ("Ts_neg = -2.0692", "Ts_neg = 2.0692", r"\[drives.X.friction\] Ts_neg: must be <= 0"),
     ("name = \"zhang2013\"", "name = \"zhang2013\"\nspeed = 3", r"speed: unknown key"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ng28 = [0, 0, 1]",
+     r"\[gcode\] g28: must be a list of 5 finite numbers, the machine axes X Y Z A C \(mm, "
+     r"rad\), got \[0, 0, 1\]"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ng29 = [0, 0, 0, 0, 0]",
+     r"\[gcode\] g29: unknown key"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode.work_offsets]\nG60 = [0, 0, 0, 0, 0]",
+     r"\[gcode.work_offsets\] G60: not a work offset; use G54 ... G59"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode.work_offsets]\nG59.1 = [0, 0, 0, 0, 0]",
+     r"\[gcode.work_offsets\] G59: a dotted key: write names with a dot in quotes"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode.work_offsets]\n\"G54.1 P1\" = [0, 0, "
+     "0, 0, 0]\n\"G54.1P1\" = [0, 0, 0, 0, 0]", r"G54.1P1: G54.1 P1 is given twice"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M6\"]",
+     r"\[gcode\] tcp_on: M6 has a meaning of its own"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = \"M128\"",
+     r"\[gcode\] tcp_on: must be a list of M codes such as \[\"M428\"\]"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"G43.4\"]",
+     r"\[gcode\] tcp_on: 'G43.4' is not an M code"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M128\"]\n"
+     "tcp_off = [\"M128\"]", r"\[gcode\] tcp_off: M128 is in tcp_on too"),
 ])
 def test_machine_file_errors(tmp_path, old, new, pattern):
     path = tmp_path / "bad.toml"
@@ -71,6 +90,20 @@ def test_machine_file_errors(tmp_path, old, new, pattern):
         load_machine(path)
     assert str(path) in str(info.value)
     assert "\n" not in str(info.value).strip()
+
+
+def test_gcode_settings(tmp_path):
+    from precontour.machine.machine_file import builtin_machine_text
+    text = builtin_machine_text("linuxcnc-xyzbc-trt") + (
+        "\n[gcode]\ng30 = [1, 2, 3, 0.5, -1]\n[gcode.work_offsets]\n\"g59.1\" = [0, 0, 9, 0, 0]\n"
+        "\"G54.1 p12\" = [1, 0, 0, 0, 0]\n")
+    settings = parse_machine(text).gcode
+    assert settings.g28 is None and settings.g30 == (1, 2, 3, 0.5, -1)
+    assert dict(settings.work_offsets) == {"G59.1": (0, 0, 9, 0, 0), "G54.1 P12": (1, 0, 0, 0, 0)}
+    assert settings.tcp_on == (428,) and settings.tcp_off == (429,)   # LinuxCNC's remaps
+    assert load_machine("zhang2013").gcode.work_offsets == {}
+    none = parse_machine(builtin_machine_text() + "[gcode]\ntcp_on = []\ntcp_off = []\n")
+    assert none.gcode.tcp_on == () and none.gcode.tcp_off == ()
 
 
 def test_unknown_machine_and_controller(machine):

@@ -3,10 +3,10 @@ result objects, compensation works on the virtual machine, and the ``demo`` comm
 
 from __future__ import annotations
 
-import base64
 import csv
 import io
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -24,12 +24,26 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
+def demo_and_warnings(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "report"
     calls = []
-    result = run_demo(out, paths=("paper",), controllers=("pid-high",),
-                      progress=lambda done, total, msg: calls.append((done, total, msg)))
-    return result, calls
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_demo(out, paths=("paper",), controllers=("pid-high",),
+                          progress=lambda done, total, msg: calls.append((done, total, msg)))
+    return (result, calls), caught
+
+
+@pytest.fixture(scope="module")
+def demo(demo_and_warnings):
+    return demo_and_warnings[0]
+
+
+def test_demo_and_its_report_warn_nothing(demo_and_warnings):
+    # every warning is recorded ("always"), so none can reach a user's terminal unseen
+    caught = demo_and_warnings[1]
+    assert not caught, [f"{w.filename}:{w.lineno}: {w.category.__name__}: {w.message}"
+                        for w in caught]
 
 
 def test_writes_every_promised_file(demo):
@@ -84,14 +98,16 @@ def test_table_numbers_are_the_result_objects_numbers(demo):
     assert rows[("paper-measured", "uncompensated")]["tip_max_um"] == "43.1"
 
 
-def test_html_is_self_contained_and_holds_numbers_and_figures(demo):
+def test_html_shows_the_folders_figures_and_holds_numbers(demo):
     result, _ = demo
     page = (result.out_dir / "index.html").read_text(encoding="utf-8")
     pngs = sorted(p for p in result.files if p.suffix == ".png")
-    assert page.count('src="data:image/png;base64,') == len(pngs) == 3
+    # each figure is the PNG file beside the page, by its name (not embedded, not remote)
+    assert page.count("<img src=") == len(pngs) == 3
     for png in pngs:
-        assert base64.b64encode(png.read_bytes()).decode() in page
-    assert "<img src=\"http" not in page and ".png\"" not in page
+        assert png.parent == result.out_dir
+        assert page.count(f'<img src="{png.name}"') == 1
+    assert "data:image" not in page and "<img src=\"http" not in page
     realistic = result.case("paper", "pid-high").run("realistic", "pre-compensated").contour
     assert f"<td class=\"num\">{1e3 * realistic.tip.max():#.4g}</td>" in page
     assert "<td class=\"num\">43.10</td>" in page
@@ -189,6 +205,24 @@ def test_progress_line_streams():
     # the shorter message blanks out the rest of the longer one
     first, second = text.split("\r")[1:]
     assert len(second.rstrip("\n")) == len(first)
+
+
+def test_compile_note_gets_a_line_of_its_own_under_a_progress_line(capsys):
+    from precontour import kernels
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Terminal()
+    line = ProgressLine(tty)
+    line(0, 2, "trajectory")
+    kernels.print_note()             # what the first compile prints, on stderr
+    line(1, 2, "predict")
+    line.close()
+    assert tty.getvalue().count("\n") == 2  # the updating line was ended before the note
+    assert tty.getvalue().split("\n")[1].startswith("\r[")
+    assert capsys.readouterr().err.startswith("precontour: note: compiling numerical kernels")
 
 
 @pytest.mark.parametrize("kwargs, error, match", [

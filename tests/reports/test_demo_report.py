@@ -114,6 +114,24 @@ def test_figures_render_to_png():
         "eX (um)", "eY (um)", "eZ (um)", "eA (mrad)", "eC (mrad)"]
 
 
+@pytest.mark.filterwarnings("error")
+def test_contour_figure_of_errors_that_are_all_zero_warns_nothing():
+    # a program that never turns the tool has orientation contour errors of exactly zero:
+    # its log-scale panel has no positive value (matplotlib warned "Data has no positive
+    # values" when the scale was switched before the limits were set)
+    traj = _trajectory()
+    zero = np.zeros(traj.n_samples)
+    tip = 1e-3 * np.abs(np.sin(np.linspace(0, 6, traj.n_samples)))
+    before = ContourErrors(tip=tip, orientation=zero, tip_parameter=traj.t,
+                           orientation_parameter=traj.t)
+    after = ContourErrors(tip=tip / 50, orientation=zero, tip_parameter=traj.t,
+                          orientation_parameter=traj.t)
+    fig = report.plot_contour(traj.t, before, after, exact_compensated=after)
+    assert _png_ok(report.figure_png(fig))
+    log_axes = [ax for ax in fig.axes if ax.get_yscale() == "log"]
+    assert [ax.get_ylim()[1] > ax.get_ylim()[0] > 0 for ax in log_axes] == [True, True]
+
+
 def test_save_png(tmp_path):
     fig = report.plot_path(_trajectory())
     file = report.save_png(fig, tmp_path / "p.png")

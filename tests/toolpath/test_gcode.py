@@ -154,13 +154,13 @@ def test_dwell_stops_and_block_delete(machine, tmp_path):
 
 
 def test_unknown_m_codes_are_kept_with_one_notice(machine, tmp_path):
-    text = "M428 ;TCP on\nG0 X0 Y0 Z0 A0 C0\nM428\nM7 M8\nG1 X1 F60 M9\nM429\n"
+    text = "M100 ;probe on\nG0 X0 Y0 Z0 A0 C0\nM100\nM7 M8\nG1 X1 F60 M9\nM101\n"
     program = read(tmp_path, machine, text)
     assert len(program.notices) == 2
-    assert program.notices[0].endswith("prog.ngc, line 1: M428 is not a code precontour "
+    assert program.notices[0].endswith("prog.ngc, line 1: M100 is not a code precontour "
                                        "knows; kept as a pass-through line")
-    assert dict(program.passthrough) == {1: "M428 ;TCP on", 3: "M428", 4: "M7 M8", 5: "M9",
-                                         6: "M429"}
+    assert dict(program.passthrough) == {1: "M100 ;probe on", 3: "M100", 4: "M7 M8", 5: "M9",
+                                         6: "M101"}
 
 
 def test_g93_and_g94_switching(machine, tmp_path):
@@ -289,7 +289,8 @@ def _tcp_program(prefix, suffix):
 
 
 @pytest.mark.parametrize("prefix, suffix, option", [
-    ("G43.4 H1", "G49", False), ("TRAORI", "TRAFOOF", False), ("M428", "M429", True)])
+    ("G43.4 H1", "G49", False), ("TRAORI", "TRAFOOF", False), ("M428", "M429", False),
+    ("(TCP by the site's own code)", "G49", True)])
 def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, option):
     text, tips, rot = _tcp_program(prefix, suffix)
     program = read(tmp_path, machine, text, tcp=option)
@@ -298,8 +299,9 @@ def test_tcp_moves_reach_the_programmed_tips(machine, tmp_path, prefix, suffix, 
     np.testing.assert_allclose(program.points[:4, 3:], rot, rtol=0, atol=1e-15)  # as programmed
     np.testing.assert_allclose(program.duration[:3], [6.0, 3.0, 2.0])
     assert program.tcp and program.tcp_move[:3].all()
-    assert all("H1" not in text for _, text in program.passthrough)  # no lone H word
-    if option:  # the whole program is TCP: the last rapid is a tip position too
+    # no lone H word, no TCP switch in the pass-through lines
+    assert all("H1" not in text and "M42" not in text for _, text in program.passthrough)
+    if option:  # TCP from the start, and G49 does not end it: the last rapid is a tip too
         np.testing.assert_allclose(machine.kinematics.forward(program.q[-1])[0], [0, 0, 100],
                                    atol=1e-10)
     else:       # after G49/TRAFOOF the words are machine axes again
@@ -328,10 +330,70 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 Y0 Z0 A0 C0\nG1 X1\n", r"line 2, word 'G1': feed move without a feed rate"),
     ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X1 F10\nG94 G1 X2\n", r"line 3, word 'G1': feed move without"),
     ("G0 X0\nG95\n", r"line 2, word 'G95': feed per revolution \(G95\) is not supported"),
-    ("G0 X0\nG28 G91 Z0\n", r"line 2, word 'G28': G28 \(return through a reference point\)"),
-    ("G0 X0\nG53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\)"),
-    ("G0 X0\nG10 L2 P1 X0\n", r"line 2, word 'G10': G10 \(writing offset and tool tables\)"),
-    ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycles \(G81\)"),
+    ("G0 X0\nG91 G53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\) "
+                              r"cannot be incremental \(G91\)"),
+    ("G0 X0 Y0 Z0 A0 C0\nG2 X2 I1 F10\nG53 Z0\n", r"line 3, word 'G53': G53 .* needs G0 or "
+                                                  r"G1"),
+    ("G0 X0\nG28 G0 X1\n", r"line 2, word 'G0': G28 and G0 both use the axis words"),
+    ("G0 X0\nG28 G53 Z1\n", r"line 2, word 'G53': two codes of one modal group \(G28, G53\)"),
+    ("G0 X0\nG10 L1 P1 Z0\n", r"line 2, word 'L1': G10 L1 is not supported \(only G10 L2 and "
+                             r"G10 L20 set work offsets"),
+    ("G0 X0\nG10 L2 P10 X0\n", r"line 2, word 'P10': G10 L2/L20 needs P0 .* P9"),
+    ("G0 X0\nG10 L2 P1 R30\n", r"line 2, word 'R30': G10 R \(a rotated coordinate system\)"),
+    ("G0 X0\nG54.1 X1\n", r"line 2, word 'G54.1': G54.1 needs the number of its work "
+                          r"offset, P1 ... P300"),
+    ("G0 X0\nG54.1 P301\n", r"line 2, word 'P301': G54.1 P301: the extended work offsets"),
+    ("G0 X0\nG92\n", r"line 2, word 'G92': G92 needs at least one axis word"),
+    ("G0 X0\nG92 Y1\n", r"line 2, word 'Y1': G92 sets axis Y relative to its position, "
+                        r"which is not known yet"),
+    ("G0 X0\nG28.1\n", r"line 2, word 'G28.1': G28.1 stores the current position, which is "
+                       r"not known yet"),
+    ("G0 X0\nM61 Q1 L2\n", r"line 2, word 'L2': unsupported word 'L2' \(L is read with G10, canned "
+                           r"cycles, M98\)"),
+    ("G0 X0\nG81 X1 Z-1 R1\n", r"line 2, word 'G81': canned cycle without a feed rate"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 F9\n", r"line 2, word 'G81': G81 needs R \(the retract "
+                                          r"plane\) when the cycle begins"),
+    ("G0 X0 Y0 Z5 A0 C0\nG83 X1 Z-1 R1 F9\n", r"line 2, word 'G83': G83 needs Q \(the peck "
+                                             r"depth\) when the cycle begins"),
+    ("G0 X0 Y0 Z5 A0 C0\nG82 X1 Z-1 R1 F9\n", r"line 2, word 'G82': G82 needs P \(the dwell, "
+                                             r"s\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 R1 F9\n", r"line 2, word 'G81': G81 needs Z \(the bottom\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z2 R1 F9\n", r"line 2, word 'G81': the retract plane R is below "
+                                            r"the bottom Z of the cycle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 L0 F9\n", r"line 2, word 'L0': canned cycle repeats 'L0' "
+                                                r"must be a whole number >= 1"),
+    ("G0 X0 Y0 Z5 A0 C0\nG83 X1 Z-1 R1 Q0 F9\n", r"line 2, word 'Q0': G83 needs a peck depth "
+                                                r"Q > 0"),
+    ("G0 X0 Y0 Z5 A0 C0\nG93 G81 X1 Z-1 R1 F9\n", r"line 2, word 'G81': canned cycles need feed "
+                                                 r"per minute \(G94\)"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 C5 F9\n", r"line 2, word 'C5': the rotary axes may not "
+                                                r"move in a canned cycle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG43.4 H1\nG81 X1 Z-1 R1 F9\n", r"line 3, word 'G81': canned cycles "
+                                                       r"under G43.4/G43.5"),
+    ("G0 X0 Y0 Z5 A0 C0\nG84 X1 Z-1 R1 F9\n", r"line 2, word 'G84': tapping cycles \(G84\) follow "
+                                             r"the spindle"),
+    ("G0 X0 Y0 Z5 A0 C0\nG88 X1 Z-1 R1 P1 F9\n", r"line 2, word 'G88': G88 \(boring with a "
+                                                r"manual retract"),
+    ("G0 X0 Y0 Z5 A0 C0\nG81 X1 Z-1 R1 F9\nG80\nX2\n", r"line 4, word 'X2': axis words after "
+                                                      r"G80 without a motion code"),
+    ("G0 X0 Y0 Z5 A0 C0\nG18 G81 Z0 Y-1 R1 @2 F9\n", r"word '@2': polar coordinates "
+                                                  r"\(@ \^\) in a canned cycle need the XY "
+                                                  r"plane"),
+    ("G0 X0 Y0 Z5 A0 C0\nG1 X1 @2 F9\n", r"line 2, word '@2': polar coordinates \(@ \^\) and "
+                                        r"X or Y in one block"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0 P1\n", r"line 2, word 'P1': G68.2 P1: only "
+                                                       r"the Euler-angle form"),
+    ("G0 X0 Y0 Z5 A0 C0\nG53.1\n", r"line 2, word 'G53.1': G53.1 needs a tilted working plane"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nG55\n", r"line 3, word 'G55': G55 with "
+                                                          r"G68.2 active: cancel it with G69"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nG1 A5 F9\n", r"line 3, word 'A5': rotary "
+                                                               r"axis word 'A5' with G68.2"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nM428\n", r"line 3, word 'M428': a TCP "
+                                                           r"switch with G68.2 active"),
+    ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0 G1\n", r"line 2, word 'G68.2': G68.2, G53.1 "
+                                                       r"and G69 take a block of their own"),
+    ("G0 X1\nG68.2 X0 Y0 Z0 I0 J10 K0\n", r"line 2, word 'G68.2': G68.2 before the position "
+                                          r"of every axis is known"),
     ("G0 X0\nG41 D1\n", r"line 2, word 'G41': cutter radius compensation"),
     ("G0 X0\nG5.1 X1\n", r"line 2, word 'G5.1': unsupported G code G5.1"),
     ("G0 X0\nG1 B45. F100\n", r"line 2, word 'B45.': unsupported word 'B45.' \(axes are "
@@ -340,13 +402,46 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0\nG1 X Y1 F100\n", r"line 2, word 'X': cannot parse number 'X'"),
     ("G0 X0\r\nG1 Y- F100\r\n", r"line 2, word 'Y-': cannot parse number 'Y-'"),
     ("G0 X0\n5 Y1\n", r"line 2: cannot parse '5'"),
-    ("G0 X0\nG1 X#1 F100\n", r"line 2, word '#1': macros and variables"),
-    ("G0 X0\n#1=5\n", r"line 2, word '#1=5': macros and variables \(#, \[ \], =\)"),
-    ("G0 X[1+2]\n", r"line 1, word '\[1\+2\]': macros and variables"),
-    ("G0 X0\nO100 SUB\n", r"line 2, word 'O100SUB': subroutines and control flow \(O-word "
-                          r"sub\)"),
-    ("G0 X0\nO100 CALL\n", r"line 2, word 'O100CALL': subroutines .*\(O-word call\)"),
-    ("G0 X0\nM98 P100\n", r"line 2, word 'M98': subprogram calls \(M98\)"),
+    ("G0 X0\nG1 X#<a> F100\n", r"line 2, word '#<A>': named parameter #<a> is not defined"),
+    ("G0 X0\nG1 X#<_nope> F100\n", r"line 2, word '#<_NOPE>': named parameter #<_nope> is "
+                                  r"not defined"),
+    ("G0 X0\n#1 = [1 / [2 - 2]]\n", r"line 2, word '#1=\[1/\[2-2\]\]': division by zero"),
+    ("G0 X0\nG0 X[SQRT[-1]]\n", r"line 2, word 'X\[SQRT\[-1\]\]': SQRT\[-1\] is not defined"),
+    ("G0 X0\nG0 X[FOO[1]]\n", r"line 2, word 'X\[FOO\[1\]\]': unknown function or operator "
+                              r"'FOO'"),
+    ("G0 X[1+2\n", r"line 1, word 'X\[1\+2': unclosed '\[' in an expression"),
+    ("G0 X0\n#6000 = 1\n", r"line 2, word '#6000': parameter #6000 is out of range"),
+    ("G0 X0\n#5221 = 1\n", r"line 2, word '#5221=1': parameter #5221 is the controller's "
+                           r"stored position or offset data"),
+    ("G0 X0\n#<_x> = 1\n", r"line 2, word '#<_X>=1': #<_x> is read-only"),
+    ("G0 X0\n#1\n", r"line 2, word '#1': a parameter outside an expression must be set"),
+    ("G0 X0\nX=1\n", r"line 2, word 'X=1': '=' sets a parameter only after one"),
+    ("G0 X0\nO100 SUB\n", r"line 2, word 'O100SUB': o100 sub is never closed"),
+    ("G0 X0\nO100 CALL\n", r"line 2, word 'O100CALL': subroutine o100 is not defined in this "
+                           r"file"),
+    ("G0 X0\nO<probe> CALL [1]\n", r"line 2, word 'O<PROBE>CALL': subroutine o<probe> is not "
+                                   r"defined in this file \(LinuxCNC looks for probe.ngc in its "
+                                   r"SUBROUTINE_PATH; precontour reads one file\)"),
+    ("G0 X0\no101 endwhile\n", r"line 2, word 'O101ENDWHILE': o101 endwhile without an open "
+                               r"o101 while"),
+    ("G0 X0\no1 if [1]\no2 endif\n", r"line 3, word 'O2ENDIF': o2 endif without an open o2 "
+                                     r"if"),
+    ("G0 X0\no1 break\n", r"line 2, word 'O1BREAK': o1 break outside an o1 while or do loop"),
+    ("G0 X0\no1 return\n", r"line 2, word 'O1RETURN': o1 return outside a subroutine"),
+    ("G0 X0\no1 if [1] G1\no1 endif\n", r"line 2, word 'O1IF': after O1 if only values in"),
+    ("G0 X0\no1 sub\no1 call\no1 endsub\no1 call\n",
+     r"line 3: calls nested more than 100 deep: a runaway recursion\?"),
+    ("G0 X0\nM98 P100\n", r"line 2, word 'P100': M98: there is no O100 \(its subprogram\) in "
+                          r"this file"),
+    ("G0 X0\nM99\n", r"line 2, word 'M99': M99 outside a subprogram: in the main program it "
+                     r"would restart it"),
+    ("G0 X0\nM98 P100\nM30\nO100\nG0 X1\n", r"line 5: the program ends inside subprogram O100 "
+                                          r"\(called on line 2\): M99 is missing"),
+    ("G0 X0\nM72\n", r"line 2, word 'M72': M72 without a state saved by M70"),
+    ("G0 X0\nIF [#1 GT 0] GOTO 10\n", r"line 2, word 'IF\[': Fanuc macro statements \(IF GOTO, "
+                                     r"WHILE DO END\) are not supported"),
+    ("G0 X0\no1 repeat [2]\no1 break\no1 endrepeat\n", r"line 3, word 'O1BREAK': o1 break "
+                                                    r"outside an o1 while or do loop"),
     ("G0 X0\nG65 P9000\n", r"line 2, word 'G65': macro calls \(G65\)"),
     ("X0 Y0 Z10\n", r"line 1, word 'X0': axis words before any motion code"),
     ("G0 G1 X0\n", r"line 1, word 'G1': two codes of one modal group \(G0, G1\) in one block"),
@@ -355,9 +450,9 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 X1\n", r"line 1, word 'X1': word X appears twice in the block"),
     ("G0 X0\nG1 X1 F100 F200\n", r"line 2, word 'F200': word F appears twice in the block"),
     ("G0 X0\nG1 X1 F100\nG1 Q5 X2\n", r"line 3, word 'Q5': unsupported word 'Q5' \(Q is read "
-                                      r"with G64\)"),
+                                      r"with G64, G73/G83, M61, M66-M68\)"),
     ("G0 X0\nG1 X1 F100 \u00e9\n", r"line 2: cannot parse '\u00c9'"),
-    ("G0 X0\nG4 G1 X1 P1\n", r"line 2, word 'G4': dwell \(G4\) and a motion code"),
+    ("G0 X0\nG4 G1 X1\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
     ("G0 X0\nG4\n", r"line 2, word 'G4': dwell \(G4\) needs a time P"),
     ("G0 X0\nG4 P1 Y2\n", r"line 2, word 'Y2': axis word 'Y2' in a dwell"),
     ("G0 X0\nG1 X1 (OPEN (NESTED) COMMENT)\n", r"line 2: unbalanced or nested"),
@@ -404,7 +499,7 @@ def test_real_program_idioms(machine, tmp_path):
     assert program.start_line == 7
     kept = dict(program.passthrough)
     assert kept[4] == "G17 G40" and kept[6] == "T1 M6"
-    assert kept[7] == "G54 S630 M03" and kept[8] == "M08" and kept[14] == "M09"
+    assert kept[7] == "S630 M03" and kept[8] == "M08" and kept[14] == "M09"
     np.testing.assert_allclose(program.duration[1:4],
                                [11.625 / 300 * 60, 0.275 / 600 * 60, 60 / 67.8035], rtol=1e-12)
 
@@ -467,3 +562,473 @@ def test_plain_blocks_read_like_the_general_path(machine, tmp_path, modes):
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-12)  # G91 sums in another order
     np.testing.assert_allclose(fast.duration, slow.duration, rtol=1e-13)
     np.testing.assert_allclose(fast.feed, slow.feed, rtol=1e-13)
+
+
+# --------------------------------------------------------------------------- machine data
+
+
+GCODE_TABLE = """
+[gcode]
+g28 = [0.0, 0.0, 400.0, 0.0, 0.0]
+g30 = [-100.0, 50.0, 380.0, 0.0, 0.5]
+
+[gcode.work_offsets]
+G54 = [10.0, 20.0, 30.0, 0.0, 0.0]
+G55 = [100.0, 0.0, 0.0, 0.0, 0.5]
+"G59.3" = [0.0, -5.0, 0.0, 0.0, 0.0]
+"G54.1 P2" = [1.0, 2.0, 3.0, 0.0, 0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def shop_machine():
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    return parse_machine(builtin_machine_text() + GCODE_TABLE, "shop.toml")
+
+
+def test_work_offsets_from_the_machine_file(shop_machine, tmp_path):
+    # LinuxCNC: absolute position = words + work offset (+ G92); an axis without a word keeps
+    # its absolute position when the offset changes
+    text = ("G0 X1 Y2 Z3 A0 C0\nG55 G1 X1 F600\nG59.3 G0 Y1\nG54.1 P2 G0 X0 Y0\nG54 Z0\n"
+            "C10\nG55 C10\n")
+    program = read(tmp_path, shop_machine, text)
+    np.testing.assert_allclose(program.start, [11, 22, 33, 0, 0])
+    expected = [[101, 22, 33, 0, 0], [101, -4, 33, 0, 0], [1, 2, 33, 0, 0], [1, 2, 30, 0, 0],
+                [1, 2, 30, 0, deg(10)], [1, 2, 30, 0, 0.5 + deg(10)]]
+    np.testing.assert_allclose(program.q, expected, rtol=0, atol=1e-12)
+    assert program.notices == ()
+    assert all("G55" not in text and "G54" not in text for _, text in program.passthrough)
+
+
+def test_work_offsets_not_given_are_identity_said_once(machine, tmp_path):
+    program = read(tmp_path, machine, "G55 G0 X1 Y2 Z3 A0 C0\nG1 X2 F60\nG56 X3\nG54.1 P9 X4\n")
+    np.testing.assert_allclose(program.q[:, 0], [2, 3, 4])
+    assert program.notices == (
+        f"{tmp_path / 'prog.ngc'}, line 1: the machine file gives no work offset G55 "
+        "([gcode.work_offsets]); work offsets it does not give are taken as zero (identity)",)
+
+
+def test_g53_moves_in_machine_coordinates(shop_machine, tmp_path):
+    text = ("G0 X1 Y2 Z3 A0 C0\nG53 G0 Z350\nG53 G1 X-5 F600\nG1 Y0\nG53 X0 Y0 Z0\n"
+            "G1 X5 Y5\n")
+    program = read(tmp_path, shop_machine, text)
+    np.testing.assert_allclose(program.q[:4], [[11, 22, 350, 0, 0], [-5, 22, 350, 0, 0],
+                                               [-5, 20, 350, 0, 0], [0, 0, 0, 0, 0]],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(program.rapid[:4], [True, False, False, False])
+    np.testing.assert_allclose(program.duration[1], 16 / 600 * 60)
+    # after G53 the words are work coordinates again (G54: +10, +20, +30)
+    np.testing.assert_allclose(program.q[-1], [15, 25, 0, 0, 0], atol=1e-12)
+
+
+def test_g53_in_tcp_mode_is_a_joint_space_move(machine, tmp_path):
+    text = ("G43.4 H1\nG0 X10 Y-5 Z2 A-30 C20\nG53 G0 Z450\nG53 G1 A0 C0 F600\nG1 Z1 F60\n"
+            "G49\n")
+    program = read(tmp_path, machine, text)
+    kin = machine.kinematics
+    first = kin.linear_axes(np.array([10.0, -5.0, 2.0]), deg(-30), deg(20))
+    np.testing.assert_allclose(program.q[0], [*first[:2], 450, deg(-30), deg(20)], atol=1e-9)
+    np.testing.assert_allclose(program.q[1], [*first[:2], 450, 0, 0], atol=1e-9)
+    np.testing.assert_array_equal(program.tcp_move, [False, False, True])
+    # rotary-only G94 move: degrees / F
+    np.testing.assert_allclose(program.duration[1], math.hypot(30, 20) / 600 * 60)
+    # the TCP move starts from the tip where the joint-space move left it
+    tip, _ = kin.forward(program.q[1])
+    end, _ = kin.forward(program.q[2])
+    np.testing.assert_allclose(end, [tip[0], tip[1], 1.0], atol=1e-9)
+
+
+def test_g28_and_g30_use_the_machine_file_reference(shop_machine, tmp_path):
+    text = ("G0 X1 Y2 Z3 A0 C0\nG91 G28 Z0\nG90 G28 X5\nG30\nG0 X0 Y0 Z0\nG28.1\nG0 X1\n"
+            "G28\n")
+    program = read(tmp_path, shop_machine, text)
+    q = program.q
+    np.testing.assert_allclose(q[0], [11, 22, 33, 0, 0])          # G91 Z0: no intermediate move
+    np.testing.assert_allclose(q[1], [11, 22, 400, 0, 0])          # then Z to the reference
+    np.testing.assert_allclose(q[2], [15, 22, 400, 0, 0])          # intermediate X5 (+ G54)
+    np.testing.assert_allclose(q[3], [0, 22, 400, 0, 0])           # then X only
+    np.testing.assert_allclose(q[4], [-100, 50, 380, 0, 0.5])      # G30: every axis
+    np.testing.assert_allclose(q[5], [10, 20, 30, 0, 0.5])
+    np.testing.assert_allclose(q[6], [11, 20, 30, 0, 0.5])
+    np.testing.assert_allclose(q[7], [10, 20, 30, 0, 0.5])         # the G28.1 position
+    assert program.rapid.all() and program.notices == ()
+
+
+def test_g28_without_a_reference_takes_the_machine_origin(machine, tmp_path):
+    program = read(tmp_path, machine, "G91 G28 Z0\nG90 G0 X1 Y2 A0 C0\nG1 X2 F60\nG28\n")
+    assert program.start_line == 2
+    np.testing.assert_allclose(program.start, [1, 2, 0, 0, 0])
+    np.testing.assert_allclose(program.q[-1], [0, 0, 0, 0, 0])
+    assert program.notices == (
+        f"{tmp_path / 'prog.ngc'}, line 1: the machine file gives no reference position for "
+        "G28 ([gcode] g28); the machine origin (all axes 0) is taken, as in LinuxCNC's "
+        "default parameters",)
+
+
+def test_g10_and_g92_offsets(machine, tmp_path):
+    # the numbers of LinuxCNC's rs274 on the same program (absolute = canonical + G5x + G92)
+    text = ("G10 L2 P1 X10 Y20 Z30\nG10 L2 P2 X100 C30\nG54 G0 X1 Y2 Z3 A0 C0\n"
+            "G55 G1 X1 F600\nG10 L2 P1 X0 Y0 Z0\nG54 G0 X5\nG92 X1\nG10 L20 P2 X0\n"
+            "G55 X0 Y0\nG1 X2 F100\nG92.1\nG0 X2\nG92 Y3\nG92.2\nG0 Y1\nG92.3\nG0 Y1\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_allclose(program.start, [11, 22, 33, 0, 0])
+    x_y = [[101, 22], [5, 22], [5, 0], [7, 0], [3, 0], [3, 1], [3, -2]]
+    np.testing.assert_allclose(program.q[:, :2], x_y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(program.q[0, 4], 0.0, atol=1e-15)   # C kept when G55 adds 30
+
+
+def test_tcp_on_after_positioning_keeps_the_known_position(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X10. Y0.\nG43.4 H1\nG1 Z-1. F100\nG1 X0\n")
+    assert program.notices == (f"{tmp_path / 'prog.ngc'}, line 3: axes Z A C were not "
+                               "programmed before the first feed move; taken as 0",)
+    np.testing.assert_allclose(program.start, [10, 0, 0, 0, 0])
+    tip0, _ = machine.kinematics.forward(program.start)
+    tips, _ = machine.kinematics.forward(program.q)
+    np.testing.assert_allclose(tips, [[tip0[0], tip0[1], -1], [0, tip0[1], -1]], atol=1e-9)
+    assert program.tcp_move.all()
+
+
+def test_m61_and_io_words_are_kept(machine, tmp_path):
+    text = "G0 X0 Y0 Z0 A0 C0\nM61 Q1\nM64 P2\nM66 E0 L0\nM68 E3 Q1.5\nG1 X1 F60\n"
+    program = read(tmp_path, machine, text)
+    assert dict(program.passthrough) == {2: "M61 Q1", 3: "M64 P2", 4: "M66 E0 L0",
+                                         5: "M68 E3 Q1.5"}
+    assert program.notices == ()
+
+
+
+def test_g97_spindle_rpm_mode_is_kept(machine, tmp_path):
+    """Fanuc-style posts start the spindle with ``G97 S.. M3`` (RPM mode, LinuxCNC's default
+    too): kept as a pass-through line, no notice."""
+    program = read(tmp_path, machine, "G0 X0 Y0 Z0 A0 C0\nG97 S8000 M3\nG1 X1 F60\n")
+    assert dict(program.passthrough) == {2: "G97 S8000 M3"}
+    assert program.notices == ()
+
+
+# --------------------------------------------------------------------------- TCP switches
+
+
+@pytest.fixture(scope="module")
+def xyzac():
+    return load_machine("linuxcnc-xyzac-trt")
+
+
+SWITCHKINS_DEMOS = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/"
+                        "5axis/table-rotary-tilting/demos")
+
+# LinuxCNC's xyzac_switchkins_test_3.ngc, re-typed: M429 identity kinematics, M428 TCP; its
+# "expect" comments give the position LinuxCNC's display shows (machine axes under M429, the
+# tool tip in the table frame under M428) after each block
+SWITCHKINS_3 = """m429 ;trivkins
+G0 X0 Y0 Z0 A0 C0
+G0 C90 X10 Y0
+G1 F1000 Z2
+(debug,A expect: 10   0 2) m1
+m428 ;tcp
+(debug,C expect:  0 -10 2) m1
+g1f1000 z0
+(debug,D expect:  0 -10 0) m1
+m429 ;trivkins
+(debug,F expect: 10 0 0)
+G1 X5
+m2
+"""
+
+
+def _expectations(program, machine):
+    """(line, displayed position) after each move: machine axes, or the tip in TCP mode."""
+    tips, _ = machine.kinematics.forward(program.q)
+    shown = np.where(program.tcp_move[:, None], tips, program.q[:, :3])
+    return dict(zip(program.line.tolist(), shown))
+
+
+def test_tcp_switched_mid_program_by_m428_m429(xyzac, tmp_path):
+    program = read(tmp_path, xyzac, SWITCHKINS_3)
+    shown = _expectations(program, xyzac)
+    np.testing.assert_allclose(shown[4], [10, 0, 2], atol=1e-12)    # expect A (identity)
+    np.testing.assert_allclose(shown[8], [0, -10, 0], atol=1e-12)   # expect C, then D (TCP)
+    np.testing.assert_allclose(program.q[-2, :3], [10, 0, 0], atol=1e-12)   # expect F
+    np.testing.assert_allclose(program.q[-1, :3], [5, 0, 0], atol=1e-12)    # machine axes again
+    np.testing.assert_array_equal(program.tcp_move, [False, False, True, False])
+    assert program.tcp and program.notices == ()
+    assert dict(program.passthrough)[6] == "(tcp)"
+    installed = SWITCHKINS_DEMOS / "xyzac_switchkins_test_3.ngc"
+    if installed.exists():
+        demo = read_program(installed, xyzac)
+        tips, _ = xyzac.kinematics.forward(demo.q)
+        np.testing.assert_allclose(tips[-1], [0, -10, 0], atol=1e-12)
+        np.testing.assert_allclose(demo.q[-1, :3], [10, 0, 0], atol=1e-12)
+
+
+def test_tcp_rotary_only_move_after_a_switch_holds_the_tip(xyzac, tmp_path):
+    # xyzac_switchkins_test_2.ngc's pattern: after M428 a rotary-only G1 keeps the tip
+    text = "M429\nG0 X0 Y0 Z5 A0 C0\nG1 F1000 Z0\nG1 X20 Y0\nM428\nG1 C90\nG1 X20\nG1 Y20\n"
+    program = read(tmp_path, xyzac, text)
+    tips, _ = xyzac.kinematics.forward(program.q)
+    np.testing.assert_allclose(tips[2:], [[20, 0, 0], [20, 0, 0], [20, 20, 0]], atol=1e-12)
+    np.testing.assert_allclose(np.degrees(program.q[2:, 4]), 90)
+
+
+def test_g49_does_not_end_tcp_switched_by_an_m_code(tmp_path):
+    # boat-xyzbc.ngc's ending: G43 H1 is the tool length, G49 cancels it, not the TCP of M428
+    machine = load_machine("linuxcnc-xyzbc-trt")
+    text = ("M428\nG0 X10 Y-5 Z5 B-20 C30\nG43 H1 Z4\nG53 G49 Z30 M09\nG53 Y0 B0 C0\n"
+            "G0 X1\nM429\nG0 X2\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.tcp_move, [True, False, False, True, False])
+    first = machine.kinematics.linear_axes(np.array([10.0, -5.0, 4.0]), deg(-20), deg(30))
+    np.testing.assert_allclose(program.q[1], [*first[:2], 30, deg(-20), deg(30)], atol=1e-9)
+    np.testing.assert_allclose(program.q[2], [first[0], 0, 30, 0, 0], atol=1e-9)
+    tip, _ = machine.kinematics.forward(program.q[3])
+    np.testing.assert_allclose(tip[0], 1.0, atol=1e-12)
+    np.testing.assert_allclose(program.q[4, 0], 2.0, atol=1e-12)
+
+
+def test_the_sites_own_tcp_codes_from_the_machine_file(tmp_path):
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    machine = parse_machine(builtin_machine_text() + '[gcode]\ntcp_on = ["M128"]\n'
+                            'tcp_off = ["m129"]\n', "heidenhain.toml")
+    text = "G0 X0 Y0 Z400 A0 C0\nM128\nG1 X1 F60\nM129\nG1 X2\nM428\n"
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.tcp_move, [True, False])
+    tip, _ = machine.kinematics.forward(program.q[0])
+    start_tip, _ = machine.kinematics.forward(program.start)
+    np.testing.assert_allclose(tip, start_tip + [1, 0, 0], atol=1e-9)
+    assert program.notices == (f"{tmp_path / 'prog.ngc'}, line 6: M428 is not a code "
+                               "precontour knows; kept as a pass-through line",)
+
+
+def test_tcp_option_ends_at_the_programs_own_tcp_off(machine, tmp_path):
+    program = read(tmp_path, machine, "G0 X1 Y2 Z3 A0 C0\nG1 X2 F60\nM429\nG1 X3\n", tcp=True)
+    np.testing.assert_array_equal(program.tcp_move, [True, False])
+    np.testing.assert_allclose(program.q[-1, 0], 3.0)
+
+
+# --------------------------------------------------------------------------- the language
+
+
+def _ends_by_line(program):
+    pm = program.programmed
+    return [(int(line), [round(float(v), 9) + 0.0 for v in end[:3]])
+            for line, end in zip(pm.line, pm.end)]
+
+
+def test_language_program_gives_linuxcncs_numbers(xyzac):
+    # the values in the program's comments are what LinuxCNC 2.9's rs274 prints for it
+    program = read_program(DATA / "language.ngc", xyzac)
+    ends = _ends_by_line(program)
+    expected_start = [(9, [7, 0, 10]), (10, [4, 4, 10]), (11, [1, 2, 10]),
+                      (12, [-3, -3, -2]), (13, [1, 0, 0]), (14, [3, 1, 5]),
+                      (15, [6, 3, 1.5]), (16, [0, 1, 1]), (18, [0, 0, 10]),
+                      (19, [-5, -1, -2]),
+                      (23, [1, 2, 0]), (31, [3, 1, 5]), (23, [20, 1, -1]), (33, [21, 2, 0]),
+                      (43, [12, 0, 0])]
+    assert ends[:len(expected_start)] == expected_start
+    rest = ends[len(expected_start):]
+    # do-while three times, while with continue (#5 = 2) and break (#5 = 5), repeat x3,
+    # while [1] left by a break
+    assert [e for _, e in rest[:10]] == [[12, 0, -1], [12, 0, -2], [12, 0, -3], [1, 2, -3],
+                                         [3, 6, -3], [4, 8, -3], [5, 7, -3], [6, 6, -3],
+                                         [7, 5, -3], [9, 5, -3]]
+    # M98 P1000 L2, each calling P2000: lines of the subprograms, #7 shared
+    assert rest[10:15] == [(97, [9, 5, -4]), (94, [10, 5, -4]), (97, [10, 5, -5]),
+                           (94, [20, 5, -5]), (74, [2, 0, 0])]
+    arcs = program.programmed.kind == 2
+    np.testing.assert_allclose(program.programmed.centre[arcs][:, :2], [[0, 0], [0, 5]],
+                               atol=1e-12)
+    np.testing.assert_array_equal(program.programmed.turns[arcs], [1, -1])
+    # polar @10 ^45, then G91 @1 ^15, then G90 @5; M72 restores G21 G90 after G20 G91
+    assert [e for _, e in rest[-6:-1]] == [
+        [round(10 * math.cos(math.pi / 4), 9), round(10 * math.sin(math.pi / 4), 9), 0],
+        [round(11 * math.cos(math.radians(60)), 9), round(11 * math.sin(math.radians(60)), 9),
+         0],
+        [2.5, round(5 * math.sin(math.radians(60)), 9), 0],
+        [5.04, round(5 * math.sin(math.radians(60)), 9), 0],
+        [1, round(5 * math.sin(math.radians(60)), 9), 0]]
+    assert program.notices == ()
+
+
+def test_line_column_is_the_line_executing(machine, tmp_path):
+    text = ("G0 X0 Y0 Z0 A0 C0\no10 sub\n  G1 X#1 F60\n  G1 Y#1\no10 endsub\no10 call [1]\n"
+            "o10 call [2]\nG1 Z1\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_array_equal(program.line, [3, 4, 3, 4, 8])
+    np.testing.assert_allclose(program.q[:, :3], [[1, 0, 0], [1, 1, 0], [2, 1, 0], [2, 2, 0],
+                                                  [2, 2, 1]])
+
+
+def test_parameters_in_passthrough_lines_are_evaluated(machine, tmp_path):
+    text = "#1 = 1200\nG0 X0 Y0 Z0 A0 C0\nS#1 M3 (spindle)\nT[#1 / 600] M6\nG1 X1 F60\n"
+    program = read(tmp_path, machine, text)
+    kept = dict(program.passthrough)
+    assert kept[3] == "S1200 M3 (spindle)" and kept[4] == "T2 M6"
+
+
+def test_a_runaway_loop_ends_with_an_error(machine, tmp_path, monkeypatch):
+    import precontour.toolpath.gcode as gcode
+    monkeypatch.setattr(gcode, "MAX_LOOP_ITERATIONS", 1000)
+    text = "G0 X0 Y0 Z0 A0 C0\n#1 = 0\no7 while [#1 GE 0]\n  #1 = [#1 + 1]\no7 endwhile\n"
+    with pytest.raises(ProgramError, match=r"prog.ngc, line 3, word 'O7WHILE': o7 while ran "
+                                           r"1000 times: a runaway loop\?"):
+        read(tmp_path, machine, text)
+    text = "G0 X0 Y0 Z0 A0 C0\no8 do\n  G91 G1 X0.001 F60\no8 while [1]\n"
+    with pytest.raises(ProgramError, match=r"line 2, word 'O8DO': o8 do ran 1000 times"):
+        read(tmp_path, machine, text)
+    assert gcode.MAX_LOOP_ITERATIONS == 1000
+
+
+def test_fanuc_subprogram_repeat_forms(machine, tmp_path):
+    text = ("G0 X0 Y0 Z0 A0 C0\nG91\nM98 P20100\nM98 P100 L0\nM98 P100 L2\nG90\nM30\n"
+            "O100\nG1 X1 F60\nM99\n")
+    program = read(tmp_path, machine, text)
+    np.testing.assert_allclose(program.q[:, 0], [1, 2, 3, 4])   # 2 + 0 + 2 calls
+    np.testing.assert_array_equal(program.line, [9, 9, 9, 9])
+
+
+# --------------------------------------------------------------------------- canned cycles
+
+
+def test_canned_cycles_expand_as_linuxcnc(xyzac):
+    # the moves LinuxCNC 2.9's rs274 prints for tests/toolpath/data/cycles.ngc (its lines)
+    program = read_program(DATA / "cycles.ngc", xyzac)
+    pm = program.programmed
+
+    def moves(line):
+        k = pm.line == line
+        return [("rapid" if kind == 0 else "feed", [round(float(v), 9) + 0.0 for v in e[:3]])
+                for kind, e in zip(pm.kind[k], pm.end[k])]
+
+    assert moves(6) == [("rapid", [1, 1, 20]), ("rapid", [1, 1, 2]), ("feed", [1, 1, -5]),
+                        ("rapid", [1, 1, 2])]                       # G99 by default: to R
+    assert moves(9) == [("rapid", [3, 3, 20]), ("rapid", [3, 3, 2]), ("feed", [3, 3, -5]),
+                        ("rapid", [3, 3, 20])]                      # G98: the start height
+    assert [e for _, e in moves(13)] == [[9, 3, 20], [9, 3, 2], [9, 3, -5], [9, 3, 2],
+                                         [14, 3, 2], [14, 3, -5], [14, 3, 2],
+                                         [19, 3, 2], [19, 3, -5], [19, 3, 2]]   # G91 L3
+    assert moves(17) == [("rapid", [10, 10, 20]), ("rapid", [10, 10, 1]),
+                         ("feed", [10, 10, -3]), ("rapid", [10, 10, 1]),
+                         ("rapid", [10, 10, -2.746]), ("feed", [10, 10, -7]),
+                         ("rapid", [10, 10, 1]), ("rapid", [10, 10, -6.746]),
+                         ("feed", [10, 10, -10]), ("rapid", [10, 10, 20])]   # G83 pecks
+    assert [e[2] for _, e in moves(18)] == [20, 1, -3, -2.746, -7, -6.746, -10, 1]   # G73
+    assert moves(20)[-2:] == [("feed", [13, 10, 1]), ("rapid", [13, 10, 20])]   # G85 out
+    assert moves(22)[-1] == ("feed", [15, 10, 20])                  # G89 feeds out
+    assert [e for _, e in moves(24)] == [[20, 20, 20], [20, 20, 2], [21, 20, 2], [21, 20, -5],
+                                         [20, 20, -5], [20, 20, -3], [20, 20, -5],
+                                         [21, 20, -5], [21, 20, 20], [20, 20, 20]]   # G87
+    assert moves(28) == [("rapid", [20, 20, 12]), ("rapid", [1, 2, 12]), ("feed", [1, 2, -1]),
+                         ("rapid", [1, 2, 12])]                     # up to R first
+    dwells = [(s.line, s.seconds) for s in program.stops if s.kind == "dwell"]
+    assert dwells == [(19, 0.5), (21, 0.2), (22, 0.3)]
+    polar = [e for line, e in zip(pm.line, pm.end) if line in (37, 38, 39) and e[2] == -2]
+    np.testing.assert_allclose([p[:2] for p in polar],
+                               [[10, 0], [-5, 10 * math.sin(math.radians(120))],
+                                [-5, -10 * math.sin(math.radians(120))]], atol=1e-12)
+    y_axis = moves(44)                                              # G18: drilling along Y
+    assert y_axis == [("rapid", [1, 5, 0]), ("rapid", [1, -1, 0]), ("feed", [1, -3, 0]),
+                      ("rapid", [1, -1, 0])]
+
+
+def test_cycle_words_carry_over_and_g80_ends_them(machine, tmp_path):
+    text = ("G0 X0 Y0 Z10 A0 C0\nG83 X1 Z-1.5 R1 Q1 F60\nX2\nG80\nG1 X3 F60\n")
+    program = read(tmp_path, machine, text)
+    pm = program.programmed
+    again = pm.line == 3
+    # R, Z and Q carry over: pecks of 1 mm from R, back to R, down to 0.254 above the last
+    np.testing.assert_allclose(pm.end[again][:, :3],
+                               [[2, 0, 1], [2, 0, 0], [2, 0, 1], [2, 0, 0.254], [2, 0, -1],
+                                [2, 0, 1], [2, 0, -0.746], [2, 0, -1.5], [2, 0, 1]],
+                               atol=1e-12)
+    np.testing.assert_allclose(program.q[-1, :3], [3, 0, 1])
+
+
+# --------------------------------------------------------------------------- G68.2
+
+
+def test_tilted_working_plane_g68_2_g53_1(xyzac, tmp_path):
+    # Fanuc's G68.2 with Euler angles I J K (about Z, the new X, the new Z): here 90, 30, 0,
+    # so the plane's X is the workpiece's +Y and its Z leans 30 deg towards +X
+    text = ("G21 G90 G94\nG0 X0 Y0 Z40 A0 C0\nG68.2 X10 Y5 Z0 I90 J30 K0\nG53.1\n"
+            "G0 X0 Y0 Z20\nG1 Z0 F300\nG1 X5\nG3 X5 Y5 I0 J2.5\nG81 X0 Y0 Z-4 R2\nG80\nG69\n"
+            "G0 X0 Y0 Z60\n")
+    program = read(tmp_path, xyzac, text)
+    kin = xyzac.kinematics
+    c30, s30 = math.cos(math.radians(30)), math.sin(math.radians(30))
+    x_axis, z_axis = np.array([0.0, 1.0, 0.0]), np.array([s30, 0.0, c30])
+    y_axis = np.cross(z_axis, x_axis)
+    origin = np.array([10.0, 5.0, 0.0])
+    tips, orientations = kin.forward(program.q)
+    # G53.1: the rotary axes only, then the tool along the plane's Z for every move after
+    np.testing.assert_allclose(program.q[0, :3], program.start[:3], atol=1e-12)
+    assert not program.tcp_move[0] and program.tcp_move[1:-1].all()
+    np.testing.assert_allclose(orientations[:-1], np.tile(z_axis, (len(tips) - 1, 1)),
+                               atol=1e-12)
+    pm = program.programmed
+
+    def at(line):
+        return tips[pm.first[pm.line == line][-1] + (pm.line == line).sum() - 1]
+
+    np.testing.assert_allclose(tips[1], origin + 20 * z_axis, atol=1e-9)
+    np.testing.assert_allclose(at(7), origin + 5 * x_axis, atol=1e-9)
+    # the arc is a circle in the tilted plane: centre origin + 5 x + 2.5 y, radius 2.5
+    arc = tips[pm.first[pm.line == 8][0]:pm.first[pm.line == 9][0]]
+    centre = origin + 5 * x_axis + 2.5 * y_axis
+    np.testing.assert_allclose(np.linalg.norm(arc - centre, axis=1), 2.5, atol=1e-9)
+    np.testing.assert_allclose((arc - origin) @ z_axis, 0.0, atol=1e-9)
+    np.testing.assert_allclose(pm.centre[pm.line == 8][0], centre, atol=1e-12)
+    # the cycle drills along the plane's Z
+    bottom = tips[pm.first[pm.line == 9][0] + 2]
+    np.testing.assert_allclose(bottom, origin - 4 * z_axis, atol=1e-9)
+    # G69: machine axes again
+    assert not program.tcp_move[-1]
+    np.testing.assert_allclose(program.q[-1, :3], [0, 0, 60], atol=1e-12)
+
+
+# --------------------------------------------------------------------------- a post's program
+
+
+def test_fanuc_style_trunnion_program(tmp_path):
+    """data/fanuc_trunnion.nc, written like a Fanuc five-axis post's output: G28 G91 Z0.
+    retracts, G43.4 TCP finishing with an arc and G93 blocks, then 3+2 drilling under
+    G68.2/G53.1 with G81 and G83, G53 retract; timed within the machine's limits."""
+    from precontour.machine.machine_file import builtin_machine_text, parse_machine
+    from precontour.trajectory import program_trajectory, summarize
+    machine = parse_machine(builtin_machine_text() + "[gcode]\ng28 = [0.0, 0.0, 500.0, 0.0, 0.0]\n",
+                            "shop.toml")
+    kin = machine.kinematics
+    program = read_program(DATA / "fanuc_trunnion.nc", machine)
+    pm = program.programmed
+    tips, orientations = kin.forward(program.q)
+    assert program.start_line == 15
+    np.testing.assert_allclose(kin.forward(program.start)[0], [10, -5, 20], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(program.start[3:]), [-20, 30], atol=1e-12)
+    # the TCP finish: tool tips as programmed, G93 blocks in 60/F s
+    finish = (program.line >= 16) & (program.line <= 23)
+    assert program.tcp_move[finish].all()
+    last = {line: k for k, line in enumerate(program.line)}
+    np.testing.assert_allclose(tips[last[20]], [15.5, -0.5, 0.2], atol=1e-9)
+    np.testing.assert_allclose(tips[last[23]], [6, 6, 0], atol=1e-9)
+    np.testing.assert_allclose([program.duration[program.line == 22].sum(),
+                                program.duration[program.line == 23].sum()], [60 / 40, 60 / 35])
+    arc = tips[program.line == 21]
+    np.testing.assert_allclose(np.hypot(arc[:, 0] - 13, arc[:, 1] - 1.5), math.hypot(2.5, 2),
+                               atol=1e-9)
+    # G28 G91 Z0.: machine Z to the machine file's reference, nothing else moves
+    np.testing.assert_allclose(program.q[last[26], 2], 500.0)
+    np.testing.assert_allclose(program.q[last[26], [0, 1]], program.q[last[24], [0, 1]])
+    # 3+2: the tool along the plane's Z (15 deg about X), the holes in the plane's frame
+    z_axis = np.array([0.0, math.sin(math.radians(15)), math.cos(math.radians(15))])
+    drilling = (program.line >= 34) & (program.line <= 39)
+    np.testing.assert_allclose(orientations[drilling], np.tile(z_axis, (drilling.sum(), 1)),
+                               atol=1e-12)
+    rotation = np.array([[1, 0, 0], [0, z_axis[2], z_axis[1]], [0, -z_axis[1], z_axis[2]]])
+    bottoms = [tips[k] for k in range(len(tips)) if pm.kind[np.searchsorted(pm.first, k,
+                                                                            "right") - 1] == 1
+               and program.line[k] in (36, 37, 38)]
+    np.testing.assert_allclose(bottoms, [rotation @ [x, y, -3] for x, y in
+                                         ((5, 5), (-5, 5), (-5, -5))], atol=1e-9)
+    # G53 G0 Z500.: machine Z; the last G28 G91 Z0. to the reference too
+    np.testing.assert_allclose(program.q[last[42], 2], 500.0)
+    assert not program.tcp_move[last[42]]
+    trajectory = program_trajectory(program, machine)
+    assert summarize(trajectory, machine).within_limits

@@ -252,3 +252,22 @@ def test_b_c_machine_program_uses_b_words_and_reads_back():
         path.write_text(text)
         program = read_program(path, machine)
     np.testing.assert_allclose(program.q[-1], q[-1], rtol=0, atol=1e-5)
+
+
+def test_header_counts_the_blocks_that_move_a_rotary_axis():
+    """The header names the planner behaviour the program needs and how many blocks move a
+    rotary axis (LinuxCNC 2.9 stretches those; docs/linuxcnc.md)."""
+    t = np.arange(600) * TS
+    q = np.zeros((600, 5))
+    q[:, 0] = 40 * np.sin(np.linspace(0, 3, 600))  # X moves throughout
+    q[200:400, 3] = np.linspace(0, 0.3, 200)       # A moves in the middle third only
+    q[400:, 3] = 0.3
+    program = gcode_program(t, q, axis_names=("X", "Y", "Z", "B", "C"))
+    times, points = _read_back(program.text.replace(" B", " A"))
+    moving = np.any(np.diff(np.round(np.degrees(points[:, 3:]), 6), axis=0) != 0, axis=1)
+    assert program.rotary_blocks == moving.sum() > 0
+    assert program.rotary_blocks < program.n_blocks
+    head = " ".join(line.strip("()") for line in program.text.split("G21")[0].splitlines())
+    assert (f"move B or C, here {program.rotary_blocks} of {program.n_blocks}" in head
+            and "60/F s" in head and "stream" in head)
+    assert all(len(line) <= 100 for line in program.text.splitlines())

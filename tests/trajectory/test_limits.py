@@ -23,7 +23,9 @@ def test_from_machine_reads_the_drive_limits():
     limits = AxisLimits.from_machine(load_machine("zhang2013"))
     np.testing.assert_array_equal(limits.velocity, [250, 250, 250, 3, 5])
     np.testing.assert_array_equal(limits.jerk, [2e5, 2e5, 2e5, 3000, 4000])
-    assert np.all(np.isinf(limits.position_max))
+    # no travel in the file: none, but the tilt axis's +-180 deg (as the G-code reader's)
+    np.testing.assert_array_equal(limits.position_max, [np.inf] * 3 + [np.pi, np.inf])
+    np.testing.assert_array_equal(limits.position_min, [-np.inf] * 3 + [-np.pi, -np.inf])
     text = builtin_machine_text().replace("v_max = 3.0\n", "v_max = 3.0\np_min = -1.0\n"
                                           "p_max = 1.5\n")
     limits = AxisLimits.from_machine(parse_machine(text))

@@ -166,20 +166,20 @@ def test_cli_trajectory_of_a_program(tmp_path, capsys):
     out = tmp_path / "traj.csv"
     assert main(["trajectory", str(path), "--tcp", "-o", str(out)]) == 0
     captured = capsys.readouterr()
-    assert "M428 is not a code precontour knows" in captured.err
-    assert f"program {path}: 1 move(s) (0 rapid), 1 stop(s), 2 pass-through line(s), tool " \
+    assert "M428" not in captured.err   # LinuxCNC's TCP switch, understood
+    assert f"program {path}: 1 move(s) (0 rapid), 1 stop(s), 1 pass-through line(s), tool " \
            "centre point mode" in captured.out
     assert out.read_text().splitlines()[0] == "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok,line"
     traj = read_trajectory(out)
     np.testing.assert_allclose(traj.P[-1], [20, -5, 2], atol=1e-9)
     bad = tmp_path / "bad.ngc"
-    bad.write_text("G0 X0 Y0 Z0 A0 C0\nG28 Z0\n")
+    bad.write_text("G0 X0 Y0 Z0 A0 C0\nG41 D1\n")
     out2 = tmp_path / "bad.csv"
     assert main(["trajectory", str(bad), "-o", str(out2)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == f"precontour: error: {bad}, line 2, word 'G28': G28 (return through a " \
-                  "reference point) is not supported: the machine file has no reference " \
-                  "position; program the move"
+    assert err == f"precontour: error: {bad}, line 2, word 'G41': cutter radius " \
+                  "compensation (G41) is not supported; post-process with the tool radius " \
+                  "applied"
     assert not out2.exists()
     csv = tmp_path / "cl.csv"
     csv.write_text("Px,Py,Pz,Oi,Oj,Ok\n0,0,0,0,0,1\n1,0,0,0,0,1\n")

@@ -8,7 +8,7 @@ Fig. 10) pushes the resting axis with its full static friction torque; with a qu
 the feedback cannot see the nanometres it was asked for, and the axis breaks away by
 micrometres. Measured on the built-in ``circle`` (X never moves) with ``pid-high`` on the
 realistic machine with a 0.1 um encoder: X corrections of at most 13 nm turned a 8.7 um tip
-maximum into 45 um (README, "Calibrating to your machine").
+maximum into 45 um (docs/identification.md).
 
 A correction below the prediction's own resolution (its spline fit tolerance, what
 compensation passes as ``tol_linear``/``tol_rotary``) is not a model result, so such an axis is

@@ -20,6 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
 
+from ..defaults import COMPENSATION_METHODS as METHODS
+from ..defaults import COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY
+from ..files import check_signals
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
@@ -27,11 +30,8 @@ from ..prediction.tracking import predict_tracking
 from .idle_axes import hold_idle_axes
 from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
 
-METHODS: tuple[str, ...] = ("contour", "tracking")
-#: Spline fit tolerances used when compensating: ten times finer than for prediction alone,
-#: since the fit error of each axis goes straight into the residual contour error.
-COMPENSATION_TOL_LINEAR = 1e-4
-COMPENSATION_TOL_ROTARY = 1e-7
+# METHODS and COMPENSATION_TOL_* (the spline fit tolerances when compensating, ten times finer
+# than for prediction alone) are defined in precontour.defaults, for the command line's help.
 
 
 @dataclass(frozen=True)
@@ -194,6 +194,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
     for n in range(1, iterations + 1):
+        check_signals()  # between passes: where a SIGTERM or Ctrl-C stops compensating
         if method == "tracking":
             q_new = q_cmd + (traj.q - q_act)
         else:

@@ -38,11 +38,13 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from ..defaults import DEFAULT_LEARNING_PASSES
+from ..errors import PrecontourError
+from ..files import check_signals
 from .blocks import (ORIENTATION_WEIGHT, SUMMARY_KEYS, Fallback, block_starts, fall_back,
                      TIE, best, judge, not_finite, splice_errors, whole_ok, worse_blocks)
 
-#: Learning passes against the machine model by default (CLI ``compensate --learn``).
-DEFAULT_LEARNING_PASSES = 4
+# DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
 #: every 10 ms from 0 to 100 ms. Why a grid (issue 13 section 1, "a settling criterion for the
 #: final dwell"): static friction holds each axis wherever it comes to rest, and while the
@@ -328,10 +330,24 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                          "finite")
     entries = []    # (candidate, q, judgement)
 
+    def judged_safely(q, like=None):
+        """:func:`judge_command`, a command that diverged judged not finite: one that is not
+        finite, whose motion is not, or that the machine model or the contour errors refuse
+        (e.g. coordinates out of range)."""
+        check_signals()  # between machine runs: where a SIGTERM or Ctrl-C stops learning
+        try:
+            with np.errstate(all="ignore"):
+                return judge_command(q, like)
+        except PrecontourError:
+            return not_finite(max(draws, 1), starts.size), None, None
+
     def consider(label, q, like=None):
-        """Judge and record ``q``; returns what an update learns from (None when not finite)
-        and its motions and errors (for :func:`consider_settled`)."""
-        judged, motion, errors = judge_command(q, like)
+        """Judge and record ``q``; returns what an update learns from (None when it
+        diverged: such a candidate is never kept) and its motions and errors (for
+        :func:`consider_settled`)."""
+        judged, motion, errors = judged_safely(q, like)
+        if not judged.finite:
+            label += " (diverged)"
         ok = (judged.finite and whole_ok(judged, reference)
               and (admissible is None or admissible(q)))
         blocks_ok = ok and not worse_blocks(judged, reference).any()
@@ -340,6 +356,15 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         if progress is not None:
             progress(label, judged.worst)
         return (None if motion is None else learned_from(motion)), (motion, errors)
+
+    def step_from(q_cmd, q_act):
+        """The next iterate, or None when the update diverged."""
+        try:
+            with np.errstate(all="ignore"):
+                q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+        except PrecontourError:
+            return None
+        return q_new if np.all(np.isfinite(q_new)) else None
 
     def consider_settled(label, q, like):
         for delay, start in settle_starts:
@@ -350,31 +375,39 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                                       reference.median), q_reference, reference))
     q_act_linear, linear_state = consider("linear", q_linear)
     consider_settled("linear", q_linear, linear_state)
-    # The plain sequence: each pass applies the whole update.
+    # The plain sequence: each pass applies the whole update. A sequence that diverges (an
+    # iterate not finite, or refused by the machine model) ends there: what it tried before
+    # stays a candidate, the diverged iterate is never kept.
     q_cmd, q_act = q_linear, q_act_linear
     for k in range(1, passes + 1):
-        if q_act is None:
-            break       # not finite: nothing to learn from
-        q_cmd = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+        q_cmd = None if q_act is None else step_from(q_cmd, q_act)
+        if q_cmd is None:
+            break
         q_act, state = consider(f"pass {k}", q_cmd)
+        if q_act is None:
+            break
         consider_settled(f"pass {k}", q_cmd, state)
     # The line-searched sequence: each pass continues from the best step along the update,
     # best on its worst draw.
     if line_search_steps:
         q_cmd, q_act = q_linear, q_act_linear
         for k in range(1, passes + 1):
-            if q_act is None:
+            q_full = None if q_act is None else step_from(q_cmd, q_act)
+            if q_full is None:
                 break
-            q_full = towards(q_cmd, contour_step(q_cmd, q_act, actual))
             tried = []
             for step in line_search_steps:
                 label = f"line-searched pass {k} (step {step:g})"
-                q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
+                with np.errstate(all="ignore"):
+                    q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
                 q_act_try, state = consider(label, q_try)
-                tried.append((entries[-1][2], label, q_try, q_act_try, state))
+                if q_act_try is not None:
+                    tried.append((entries[-1][2], label, q_try, q_act_try, state))
+            if not tried:
+                break
             _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
             consider_settled(label, q_cmd, state)
-    linear = next(c for c, _, _ in entries if c.label == "linear")
+    linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
     accepted = [entry for entry in entries if entry[0].accepted]
     ranks = np.array([entry[2].score for entry in accepted])
     kept = accepted[best([entry[2] for entry in accepted])]
@@ -396,7 +429,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
                             if q_alt is not q_try][:ALTERNATIVES]
             q_fixed, judged, report_try = fall_back(
-                q_try, judged_try, q_reference, reference, lambda q: judge_command(q)[0],
+                q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
                 starts, ts, alternatives=alternatives, fallbacks=fallbacks,
                 admissible=admissible, line=line, t0=t0)
             if not report_try.everywhere:

@@ -130,6 +130,12 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
             if found is None:
                 notes[axis] = (f"axis {axis}: too little motion at speed to identify J, B and "
                                "friction from the currents; kept the base drive")
+            elif not (np.isfinite(found.J) and found.J > 0 and np.isfinite(found.B)):
+                # a machine file needs J > 0: say which log and column, not the file's key
+                raise InputError(f"the motor current of {axis} does not fit its motion: it "
+                                 f"gives an inertia J = {found.J:.4g} kg m^2 (must be > 0); is "
+                                 "its sign or scale (A, kt) that of the drive's torque?",
+                                 source=log.source, field=f"I_{axis}")
             else:
                 physical[axis] = found
     if not fits:
@@ -143,7 +149,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
     # The controller the drives run, for learning against the virtual machine with friction
     # (a tf loop has none), named only when every identified axis got its J, B and friction
     # from currents: learning against the base drives, whose J and B the log just showed to
-    # be off, makes compensation worse than the identified loops alone (README, measured).
+    # be off, makes compensation worse than the identified loops alone (docs/identification-measured.md).
     drives_controller = ctrl.base if is_closed_loop(ctrl) else ctrl.name
     if drives_controller is not None and drives_controller != name and set(physical) >= set(fits):
         table["base"] = drives_controller

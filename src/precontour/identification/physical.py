@@ -92,12 +92,15 @@ def identify_physical(drive: Drive, x: np.ndarray, current: np.ndarray, ts: floa
     phi = np.stack(cols, axis=1)
     # Drop all-zero columns (Coulomb-only sides have no Ts column).
     keep = np.any(phi != 0, axis=0)
+    if not keep[:2].all():  # no change of speed or no motion: J or B is not in the data
+        return None
     norms = np.linalg.norm(phi[:, keep], axis=0)
     sol = np.zeros(phi.shape[1])
     sol[keep] = np.linalg.lstsq(phi[:, keep] / norms, impulse, rcond=None)[0] / norms
     values = dict(zip(names, sol))
     residual = phi @ sol - impulse
-    fit = float(100 * np.sqrt(np.mean(residual**2) / np.mean(impulse**2)))
+    scale = np.mean(impulse**2)
+    fit = float(100 * np.sqrt(np.mean(residual**2) / scale)) if scale > 0 else float("inf")
     friction = None
     if sides:
         params = {}

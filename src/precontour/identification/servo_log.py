@@ -16,14 +16,19 @@ Formats (picked by ``fmt`` or the file's suffix):
 
 An axis may be absent (neither its command nor its actual); one with only one of the two is an
 error. Every problem is an :class:`~precontour.errors.InputError` naming the file, row and
-field: non-numeric, NaN or infinite values, gaps, non-uniform or non-increasing time, and
-saturated currents (a current column held at its extreme value for :data:`SATURATION_RUN` or
-more samples, as an amplifier at its current limit does).
+field: non-numeric, NaN or infinite values, gaps, non-uniform or non-increasing time, currents
+that are zero throughout (not recorded) and saturated currents (a current column held at its
+extreme value for :data:`SATURATION_RUN` or more samples, as an amplifier at its current limit
+does). Text logs are read line by line, each line at most :data:`MAX_LINE_BYTES` long: a file
+that is no log (binary data, a line that does not end, a first line whose values do not match
+the column names) is refused at that line, before the rest is read.
 """
 
 from __future__ import annotations
 
+import itertools
 import re
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -31,12 +36,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..defaults import LOG_FORMATS as FORMATS
 from ..errors import InputError
+from ..files import check_input_file, refuse_non_text
 from ..machine.drives import AXES
 from ..tables import SUPPORTED_SUFFIXES, read_columns
 from ..trajectory.sampled import check_uniform_time
 
-FORMATS: tuple[str, ...] = ("table", "halsampler", "halscope")
 COMMAND_COLUMNS: tuple[str, ...] = AXES
 ACTUAL_COLUMNS: tuple[str, ...] = tuple(f"{a}_act" for a in AXES)
 CURRENT_COLUMNS: tuple[str, ...] = tuple(f"I_{a}" for a in AXES)
@@ -46,6 +52,8 @@ SATURATION_RUN = 3
 GAP_FACTOR = 1.5
 #: Fewest samples a log needs.
 MIN_SAMPLES = 20
+#: Longest line of a text log, bytes (a halsampler line of 15 pins is about 300 bytes).
+MAX_LINE_BYTES = 1 << 16
 
 _PERIOD = re.compile(r"^\s*#?\s*Sampling period is\s+(\S+)\s*ns", re.IGNORECASE)
 
@@ -117,20 +125,37 @@ def _looks_like_halscope(path: Path) -> bool:
     return bool(_PERIOD.match(head.splitlines()[0] if head.splitlines() else ""))
 
 
-def _read_text(path: Path) -> list[str]:
+def _text_lines(path: Path):
+    """(line number, text) of each line of a text log, read one at a time: refused at the
+    first line that is binary data, not UTF-8 or longer than :data:`MAX_LINE_BYTES`."""
     source = str(path)
-    if not path.is_file():
-        raise InputError("no such file", source=source)
+    check_input_file(path)
     try:
-        raw = path.read_bytes()
+        handle = open(path, "rb")
     except OSError as exc:
-        raise InputError(f"cannot read file: {exc}", source=source) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise InputError("not a text file (invalid UTF-8)", source=source, row=line) from None
-    return text.splitlines()
+        raise InputError(f"cannot read file: {exc.strerror or exc}", source=source) from None
+    with handle:
+        for number in range(1, 1 << 62):
+            try:
+                raw = handle.readline(MAX_LINE_BYTES + 1)
+            except OSError as exc:
+                raise InputError(f"cannot read file: {exc.strerror or exc}", source=source,
+                                 row=number) from None
+            if not raw:
+                return
+            if number == 1:
+                refuse_non_text(raw, source)
+            if b"\x00" in raw:
+                raise InputError("binary data, not a text log", source=source, row=number)
+            if len(raw) > MAX_LINE_BYTES:
+                raise InputError(f"line longer than {MAX_LINE_BYTES} bytes: not a servo log",
+                                 source=source, row=number)
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise InputError("not a text file (invalid UTF-8)", source=source,
+                                 row=number) from None
+            yield number, text.removeprefix("\ufeff") if number == 1 else text
 
 
 def _parse_number(text: str, source: str, line: int, field: str) -> float:
@@ -158,12 +183,37 @@ def _names(columns: Sequence[str] | None, count: int, source: str) -> list[str]:
     return names
 
 
-def _read_halsampler(path: Path, columns) -> tuple[dict, int]:
+class _Rows:
+    """Parsed values of a text log, row by row, in one flat float array (not Python lists)."""
+
+    def __init__(self):
+        self.values = array("d")
+        self.lines = array("q")
+        self.width = None
+
+    def add(self, number: int, fields, names, source: str) -> None:
+        for i, text in enumerate(fields):
+            self.values.append(_parse_number(text.strip(), source, number,
+                                             names[i] or f"column {i + 1}"))
+        self.lines.append(number)
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def drop_last(self) -> None:
+        if len(self.lines):
+            del self.lines[-1]
+            del self.values[len(self.values) - self.width:]
+
+    def table(self) -> np.ndarray:
+        return np.frombuffer(self.values, dtype=float).reshape(-1, self.width).copy()
+
+
+def _read_halsampler(path: Path, columns) -> tuple[dict, list[int]]:
     source = str(path)
-    lines = _read_text(path)
-    rows, line_numbers = [], []
+    rows = _Rows()
     names = None
-    for number, line in enumerate(lines, start=1):
+    for number, line in _text_lines(path):
         text = line.strip()
         if not text:
             continue
@@ -173,15 +223,15 @@ def _read_halsampler(path: Path, columns) -> tuple[dict, int]:
         fields = text.split()
         if names is None:
             names = _names(columns, len(fields), source)
+            rows.width = len(names)
         if len(fields) != len(names):
             raise InputError(f"expected {len(names)} values, found {len(fields)}", source=source,
                              row=number)
-        rows.append([_parse_number(f, source, number, names[i] or f"column {i + 1}")
-                     for i, f in enumerate(fields)])
-        line_numbers.append(number)
-    if not rows:
+        rows.add(number, fields, names, source)
+    if not len(rows):
         raise InputError("no samples", source=source)
-    table = np.array(rows)
+    table = rows.table()
+    line_numbers = rows.lines.tolist()
     data = {name: table[:, i] for i, name in enumerate(names) if name}
     if "n" in data:
         step = np.diff(data["n"])
@@ -196,10 +246,11 @@ def _read_halsampler(path: Path, columns) -> tuple[dict, int]:
 
 def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
     source = str(path)
-    lines = _read_text(path)
-    if not lines:
+    lines = _text_lines(path)
+    first = next(lines, None)
+    if first is None:
         raise InputError("empty file", source=source)
-    match = _PERIOD.match(lines[0])
+    match = _PERIOD.match(first[1])
     if not match:
         raise InputError("not a halscope log: the first line must be 'Sampling period is N ns'",
                          source=source, row=1)
@@ -207,46 +258,46 @@ def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
     if not (np.isfinite(period_ns) and period_ns > 0):
         raise InputError(f"sampling period must be > 0 ns, got {match.group(1)}", source=source,
                          row=1, field="Sampling period")
-    body = [(i, line.strip()) for i, line in enumerate(lines[1:], start=2) if line.strip()]
-    if not body:
+    body = ((number, line.strip()) for number, line in lines if line.strip())
+    head = next(body, None)
+    if head is None:
         raise InputError("no samples", source=source)
-    rows, line_numbers = [], []
-    if ";" in body[0][1] or not any(c.isspace() for c in body[0][1]):
+    rows = _Rows()
+    if ";" in head[1] or not any(c.isspace() for c in head[1]):
         # LinuxCNC 2.10 and later: a label header, optional '# ...' lines, ';' rows.
-        labels = [label.strip() for label in body[0][1].split(";")]
-        for number, text in body[1:]:
+        labels = [label.strip() for label in head[1].split(";")]
+        names = labels if columns is None else _names(columns, len(labels), source)
+        rows.width = len(labels)
+        for number, text in body:
             if text.startswith("#"):
                 continue
             fields = text.split(";")
             if len(fields) != len(labels):
                 raise InputError(f"expected {len(labels)} values, found {len(fields)}",
                                  source=source, row=number)
-            rows.append([_parse_number(f.strip(), source, number, labels[i])
-                         for i, f in enumerate(fields)])
-            line_numbers.append(number)
+            rows.add(number, fields, labels, source)
     else:
         labels = None
-        for number, text in body:
+        for number, text in itertools.chain([head], body):
             fields = text.split()
             if len(fields) % 2:
                 raise InputError("expected 'label value' pairs", source=source, row=number)
             these = fields[0::2]
             if labels is None:
                 labels = these
+                names = labels if columns is None else _names(columns, len(labels), source)
+                rows.width = len(labels)
             elif these != labels:
                 raise InputError(f"labels {' '.join(these)} differ from the first row's "
                                  f"{' '.join(labels)}", source=source, row=number)
-            rows.append([_parse_number(v, source, number, labels[i])
-                         for i, v in enumerate(fields[1::2])])
-            line_numbers.append(number)
+            rows.add(number, fields[1::2], labels, source)
         # That writer's loop runs one row past the captured samples.
-        rows, line_numbers = rows[:-1], line_numbers[:-1]
-    if not rows:
+        rows.drop_last()
+    if not len(rows):
         raise InputError("no samples", source=source)
-    names = labels if columns is None else _names(columns, len(labels), source)
-    table = np.array(rows)
+    table = rows.table()
     data = {name: table[:, i] for i, name in enumerate(names) if name}
-    return data, line_numbers, period_ns * 1e-9
+    return data, rows.lines.tolist(), period_ns * 1e-9
 
 
 def _assemble(source: str, data: dict, first_row, period, angle_scale: float) -> ServoLog:
@@ -298,6 +349,11 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
         actual[axis] = act * scale
         if f"I_{axis}" in data:
             current[axis] = data[f"I_{axis}"]
+            if not np.any(current[axis]):
+                raise InputError(f"the motor current of {axis} is zero on every row (not "
+                                 "recorded?): J, B and friction cannot be identified from it; "
+                                 "record the current, or leave the column out to identify the "
+                                 "closed loop alone", source=source, field=f"I_{axis}")
             _check_saturation(current[axis], source, f"I_{axis}", row_of)
     if not command:
         raise InputError(f"no axis in the log: need at least one pair of columns X, X_act (or "

@@ -4,7 +4,9 @@ A machine file has a ``[kinematics]`` table (``type`` picks a module of
 :mod:`precontour.machine.kinematics`), one ``[drives.<axis>]`` table per axis of the machine
 (X Y Z A C, or X Y Z B C on a B-C machine: the kinematics' ``axis_names``) with an optional
 ``friction`` table and optional travel ``p_min``/``p_max``, and named ``[controllers.<name>]``
-tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`.
+tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`,
+and an optional ``[gcode]`` table of the controller data G-code programs refer to (G28/G30
+reference positions, work offsets; :mod:`precontour.machine.gcode`).
 The tilt drive's travel (slot 3) bounds the tilt sign that inverse kinematics picks, unless
 the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``). Every value is
 checked; unknown and missing keys are errors naming the file, table and key. Units: mm, rad,
@@ -15,7 +17,6 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping
@@ -23,13 +24,14 @@ from typing import Mapping
 from ._config import ConfigTable
 from .controllers import CONTROLLER_TYPES, Controller, check_closed_loop_bases
 from .drives import AXES, Drive, Friction
+from ..defaults import BUILTIN_MACHINES, DEFAULT_SERVO_PERIOD
+from ..defaults import builtin_machine_text as _builtin_text
+from .gcode import GcodeSettings, parse_gcode_settings
 from ..errors import MachineFileError
 from ..files import check_input_file
 from .kinematics import KINEMATICS_TYPES
 
-#: Built-in machines: the paper's, and LinuxCNC's two trunnion-table simulator configurations
-#: (``configs/sim/axis/vismach/5axis/table-rotary-tilting``).
-BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt")
+# BUILTIN_MACHINES, the names of the built-in machines, is defined in precontour.defaults.
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,7 @@ class Machine:
     servo_period: float = 0.001
     description: str = ""
     source: str = ""
+    gcode: GcodeSettings = GcodeSettings()
 
     def controller(self, name: str) -> Controller:
         try:
@@ -167,7 +170,7 @@ def builtin_machine_text(name: str = "zhang2013") -> str:
     if name not in BUILTIN_MACHINES:
         raise MachineFileError(f"unknown built-in machine {name!r}; choose one of "
                                f"{', '.join(BUILTIN_MACHINES)}")
-    return resources.files("precontour.machine.data").joinpath(f"{name}.toml").read_text()
+    return _builtin_text(name)
 
 
 def parse_machine(text: str, source: str = "<string>") -> Machine:
@@ -179,7 +182,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     top = ConfigTable(data, source, "")
     name = top.get_str("name", default="unnamed")
     description = top.get_str("description", default="")
-    servo_period = top.get_float("servo_period", default=0.001, above=0.0)
+    servo_period = top.get_float("servo_period", default=DEFAULT_SERVO_PERIOD, above=0.0)
 
     kin_table = top.get_table("kinematics")
     kin_type = kin_table.get_str("type", choices=tuple(KINEMATICS_TYPES))
@@ -205,10 +208,11 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         raise controllers_table.error(None, "a machine needs at least one controller")
     check_closed_loop_bases(controllers, lambda ctrl_name, message: MachineFileError(
         f"[controllers.{ctrl_name}] {message}", source=source))
+    gcode = parse_gcode_settings(top.get_table("gcode", required=False), axis_names)
     top.finish()
     return Machine(name=name, kinematics=kinematics, drives=drives,
                    controllers=MappingProxyType(controllers), servo_period=servo_period,
-                   description=description, source=source)
+                   description=description, source=source, gcode=gcode)
 
 
 def _parse_drive(axis: str, table: ConfigTable) -> Drive:

@@ -5,7 +5,7 @@ quintic interpolating splines of the reference samples, parameterized by time. F
 sample the closest reference point is searched inside a window around the time-corresponding
 parameter, so a path that comes back near itself cannot capture the wrong branch: the nearest
 reference sample in the window starts Newton's method on the spline. The per-sample search is
-compiled (numba) and runs on all cores.
+compiled (numba) and runs on all cores (threads over chunks of samples).
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
-import numba
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from ..errors import InputError
+from ..kernels import jit, run_chunks
 from ..machine.kinematics import angle_between
 from ..piecewise import bspline_pieces, joint_control
 from ..trajectory.sampled import Trajectory
@@ -42,8 +42,12 @@ MAX_STEP = 0.005
 _TIP, _ORIENTATION = 0, 1
 #: Samples per task of the compiled search.
 _CHUNK = 4096
-# The compiled helpers called per sample are inlined ("always"): a call that passes arrays
-# costs two atomic reference-count updates per array, which made the search 3 times slower.
+# The compiled helpers called per sample are inlined: a call that passes arrays costs two
+# atomic reference-count updates per array, which made the search about twice as slow. LLVM
+# inlines them (forceinline), not numba (inline="always"), which types and compiles a copy of
+# the helper at each call site: all of it inlined by numba, in a parallel loop, took 27 s to
+# compile, now 3 s. _distance is numba-inlined: called with a constant, it would be compiled
+# once more for that value.
 
 
 @dataclass(frozen=True)
@@ -232,7 +236,7 @@ def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
     return breaks, coef, np.ascontiguousarray(samples), chord
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _evaluate(breaks, coef, offset, x, hint, out):
     """Value and first two derivatives of the piecewise polynomial at x into out[0..2, :]
     (Horner's scheme carried for the derivatives; dimensions offset .. offset + 2 of
@@ -258,7 +262,7 @@ def _evaluate(breaks, coef, offset, x, hint, out):
         out[2, d] = 2.0 * second
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     """d/du and d2/du2 of the search objective: |P(u) - p|^2 / 2 (tip, spec Eq. 19) or
     -O(w) . o (orientation on the unit sphere, spec Eq. 21)."""
@@ -277,23 +281,24 @@ def _gradient_curvature(kind, breaks, coef, x, hint, point, out):
     return g, c
 
 
-@numba.njit(cache=True, inline="always")
-def _distance(kind, value, point):
-    """Tip: Euclidean distance; orientation: the angle (atan2 of |a x b| and a . b, as
-    ``angle_between``)."""
+@jit(inline="always")
+def _distance(kind, values, row, point):
+    """Of ``values[row]`` from ``point``: tip, the Euclidean distance; orientation, the angle
+    (atan2 of |a x b| and a . b, as ``angle_between``)."""
     if kind == 0:
         s = 0.0
         for d in range(3):
-            s += (value[d] - point[d]) ** 2
+            s += (values[row, d] - point[d]) ** 2
         return np.sqrt(s)
-    cx = value[1] * point[2] - value[2] * point[1]
-    cy = value[2] * point[0] - value[0] * point[2]
-    cz = value[0] * point[1] - value[1] * point[0]
-    dot = value[0] * point[0] + value[1] * point[1] + value[2] * point[2]
+    v0, v1, v2 = values[row, 0], values[row, 1], values[row, 2]
+    cx = v1 * point[2] - v2 * point[1]
+    cy = v2 * point[0] - v0 * point[2]
+    cz = v0 * point[1] - v1 * point[0]
+    dot = v0 * point[0] + v1 * point[1] + v2 * point[2]
     return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), dot)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _chord(samples, k, point):
     s = 0.0
     for d in range(3):
@@ -301,7 +306,7 @@ def _chord(samples, k, point):
     return np.sqrt(s)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
     that is also the smallest angle). Exact: from ``base`` down to the nearest of its
@@ -356,7 +361,7 @@ def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
     return best_k
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _first_reaching(chord, j, direction, bound, target):
     """First index m beyond j (in ``direction``, up to ``bound``) with chord[m] at or past
     ``target``; bound + direction if none."""
@@ -388,7 +393,7 @@ ISOLATION_BLOCK = 8
 ISOLATION_SPAN = 4
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _block_core(block, n):
     """First and last sample of a block's core, and its centre sample."""
     start = block * ISOLATION_BLOCK
@@ -396,7 +401,6 @@ def _block_core(block, n):
             min(start + ISOLATION_BLOCK // 2, n - 1))
 
 
-@numba.njit(cache=True, parallel=True)
 def _isolation(samples, chord, lo, hi, span):
     """For each block of ISOLATION_BLOCK samples: the smallest distance from its centre
     sample to the samples outside its core within [lower, upper] (the union of the windows
@@ -409,28 +413,42 @@ def _isolation(samples, chord, lo, hi, span):
     isolated = np.empty(blocks)
     lower = np.empty(blocks, dtype=np.intp)
     upper = np.empty(blocks, dtype=np.intp)
-    for chunk in numba.prange((blocks + _CHUNK - 1) // _CHUNK):
+    run_chunks(_isolation_chunks, (blocks + _CHUNK - 1) // _CHUNK, samples, chord,
+               np.ascontiguousarray(lo, dtype=np.intp), np.ascontiguousarray(hi, dtype=np.intp),
+               int(span), isolated, lower, upper)
+    return isolated, lower, upper
+
+
+@jit
+def _isolation_chunks(first, stop, samples, chord, lo, hi, span, isolated, lower, upper):
+    """:func:`_isolation` of the blocks of chunks [first, stop)."""
+    n = samples.shape[0]
+    blocks = isolated.size
+    point = np.empty(3)
+    for chunk in range(first, stop):
         for block in range(chunk * _CHUNK, min(blocks, (chunk + 1) * _CHUNK)):
             start = block * ISOLATION_BLOCK
-            a = n
-            b = 0
-            for j in range(max(start - span, 0), min(start + ISOLATION_BLOCK + span, n)):
+            j0 = max(start - span, 0)
+            a = lo[j0]      # (not constants: literal arguments compile a callee once more)
+            b = hi[j0]
+            for j in range(j0, min(start + ISOLATION_BLOCK + span, n)):
                 a = min(a, lo[j])
                 b = max(b, hi[j])
             lower[block] = a
             upper[block] = b
-            first, last, centre = _block_core(block, n)
-            isolated[block] = _distance_to_others(samples, chord, centre, first, last, a, b)
-    return isolated, lower, upper
+            core_first, core_last, centre = _block_core(block, n)
+            for d in range(3):
+                point[d] = samples[centre, d]
+            isolated[block] = _distance_to_others(samples, chord, point, core_first,
+                                                  core_last, a, b)
 
 
-@numba.njit(cache=True, inline="always")
-def _distance_to_others(samples, chord, k, first, last, a, b):
-    """Smallest distance from sample k to the samples of [a, b] outside [first, last] (inf
-    if none), by the galloping scan of _nearest_sample."""
+@jit
+def _distance_to_others(samples, chord, point, first, last, a, b):
+    """Smallest distance from ``point`` (a sample's copy) to the samples of [a, b] outside
+    [first, last] (inf if none), by the galloping scan of _nearest_sample."""
     best = np.inf
     margin = 1e-12 * (1.0 + abs(chord[a]) + abs(chord[b]))
-    point = samples[k]
     for direction in (1, -1):
         bound = b if direction > 0 else a
         j = last + 1 if direction > 0 else first - 1
@@ -446,7 +464,6 @@ def _distance_to_others(samples, chord, k, first, last, a, b):
     return best
 
 
-@numba.njit(cache=True, parallel=True)
 def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points, base, lo,
                         hi):
     """Closest parameter of every point (see ReferencePath._search), in chunks of samples
@@ -455,19 +472,32 @@ def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points
     parameter = np.empty(n)
     distance = np.empty(n)
     closest = np.empty((n, 3))
-    n_chunks = (n + _CHUNK - 1) // _CHUNK
-    for chunk in numba.prange(n_chunks):
-        out = np.empty((3, 3))
-        spare = np.empty((3, 3))
-        for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
-            parameter[i], distance[i] = _closest_parameter(
-                kind, t, samples, chord, isolation, breaks, coef, points[i], base[i], lo[i],
-                hi[i], out, spare)
-            closest[i] = out[0]
+    run_chunks(_closest_chunks, (n + _CHUNK - 1) // _CHUNK, kind, t, samples, chord,
+               *isolation, breaks, coef, points, base, lo, hi, parameter, distance, closest)
     return parameter, distance, closest
 
 
-@numba.njit(cache=True, inline="always")
+@jit
+def _closest_chunks(first, stop, kind, t, samples, chord, isolated, lower, upper, breaks,
+                    coef, points, base, lo, hi, parameter, distance, closest):
+    """:func:`_closest_parameters` of the points of chunks [first, stop)."""
+    n = points.shape[0]
+    isolation = (isolated, lower, upper)
+    for chunk in range(first, stop):
+        out = np.empty((3, 3))
+        spare = np.empty((3, 3))
+        point = np.empty(3)
+        for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
+            for d in range(3):
+                point[d] = points[i, d]
+            parameter[i], distance[i] = _closest_parameter(
+                kind, t, samples, chord, isolation, breaks, coef, point, base[i], lo[i],
+                hi[i], out, spare)
+            for d in range(3):
+                closest[i, d] = out[0, d]
+
+
+@jit(forceinline=True)
 def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
                        hi, out, spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
@@ -478,20 +508,23 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
     hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
     a = t[max(k - 1, lo)]
     b = t[min(k + 1, hi)]
-    g_a = _gradient_curvature(kind, breaks, coef, a, hint, point, spare)[0]
-    g_b = _gradient_curvature(kind, breaks, coef, b, hint, point, spare)[0]
-    interior = g_a < 0.0 and g_b > 0.0
+    # (one call site per helper: each inlined copy costs compile time)
+    interior = True
+    for side in range(2):
+        g_side = _gradient_curvature(kind, breaks, coef, b if side else a, hint, point,
+                                     spare)[0]
+        interior = interior and (g_side > 0.0 if side else g_side < 0.0)
     u = t[k]
-    g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
     # Elsewhere (a minimum at the window's edge, or a flat stretch where the reference
     # stands still) take bounded Newton / gradient steps inside the window.
     u_lo, u_hi = t[lo], t[hi]
-    u_previous, c_previous = u, c            # the previous iterate
+    u_previous, c_previous = u, 0.0          # the previous iterate (none at the first)
     u_evaluated = u
+    c = 0.0
     for iteration in range(NEWTON_ITERATIONS):
         if iteration > 0:
             u_previous, c_previous = u_evaluated, c
-            g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
+        g, c = _gradient_curvature(kind, breaks, coef, u, hint, point, out)
         u_evaluated = u
         # Newton's error after a step s is about |g''| s^2 / (2 c); g'' from the change of c
         # since the previous iterate
@@ -521,9 +554,10 @@ def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, 
             break
     _evaluate(breaks, coef, 3 * kind, u, hint, out)
     # the curve interpolates the samples: its distance at t[k] is the sample's
-    refined = _distance(kind, out[0], point)
-    at_sample = _distance(kind, samples[k], point)
+    refined = _distance(kind, out, 0, point)
+    at_sample = _distance(kind, samples, k, point)
     if refined <= at_sample:
         return u, refined
-    out[0] = samples[k]
+    for d in range(3):
+        out[0, d] = samples[k, d]
     return t[k], at_sample

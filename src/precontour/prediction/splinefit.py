@@ -20,17 +20,18 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from scipy.interpolate import PPoly
 from scipy.linalg.lapack import dgbsv
 
+from ..defaults import FIT_TOL_LINEAR as DEFAULT_TOL_LINEAR
+from ..defaults import FIT_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError
+from ..kernels import jit
 
-#: Default fit tolerances: 1 um for linear axes (mm), 1 urad for rotary axes (rad).
-DEFAULT_TOL_LINEAR = 1e-3
-DEFAULT_TOL_ROTARY = 1e-6
+# DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default fit tolerances (1 um on the linear
+# axes, 1 urad on the rotary ones), are defined in precontour.defaults.
 #: Samples per segment of the first fit (spec section 3: n = floor(Ns / 50)).
 INITIAL_SAMPLES_PER_SEGMENT = 50
 #: A C3 quintic at rest at both ends needs three segments (4 knots) to interpolate freely.
@@ -342,7 +343,7 @@ def _solve_with_new_knots(t, x, knots, coef, new, deviation):
     return result
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _update_deviation(coef, t, x, knots, lo, hi, deviation):
     """deviation = spline - x on the samples of the knot stretches [lo[w], hi[w]]."""
     for w in range(lo.size):
@@ -367,7 +368,7 @@ def _band_buffer(columns: int) -> np.ndarray:
     return buffer[:columns]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _kkt_system(h, x_knots, first, ends, band_t):
     """Banded KKT matrix and right-hand side of :func:`_solve_chains`, in the band storage
     LAPACK's gbsv factors in place (half bandwidth _BAND, _BAND more rows for the fill-in of
@@ -426,14 +427,14 @@ def _kkt_system(h, x_knots, first, ends, band_t):
     return ab, rhs
 
 
-@numba.njit(cache=True, nogil=True)
 def _evaluate_at_samples(coef, t, knots):
     """Spline value at every sample; the knots are samples, so each segment's samples are a
-    contiguous run."""
+    contiguous run. (Called from Python: from compiled code, the constant arguments would
+    compile the kernel a second time, for their literal values.)"""
     return _evaluate_segments(coef, t, knots, 0, knots.size - 1, 0, t.size)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _evaluate_segments(coef, t, knots, lo, hi, start, stop):
     """Spline value at the samples start .. stop - 1 of segments lo .. hi - 1 (the last
     segment's end sample included)."""
@@ -485,7 +486,7 @@ def _to_ppoly(coef: np.ndarray, t_knots: np.ndarray) -> PPoly:
     return PPoly(_local_power_coefficients(coef, t_knots), t_knots, extrapolate=True)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _local_power_coefficients(coef, t_knots):
     """PPoly coefficients (highest power of t - t_i first, shape (6, n)) of the segments in
     Hermite coordinates ``coef``: the tau powers, tau = (t - t_i) / h_i, divided by h_i^power."""

@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import factorial
 
-import numba
 import numpy as np
 from scipy.interpolate import PPoly
 
+from ..kernels import jit
 from ..machine.drives import AXES, ROTARY_AXES, LinearErrorModel
 from .splinefit import (DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, AxisFits, fit_min_jerk,
                         map_axes)
@@ -97,7 +97,7 @@ class TrackingError:
         return value.reshape(t.shape)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _error_at(breaks, forced, poles, powers, free, t):
     """e(t) without the offset at each time: the segment's polynomial part plus its free
     response, zero before the first break. The segment is found from the previous sample's
@@ -111,7 +111,16 @@ def _error_at(breaks, forced, poles, powers, free, t):
     for k in range(t.size):
         x = t[k]
         if not (breaks[segment] <= x and (segment == last or x < breaks[segment + 1])):
-            segment = min(max(np.searchsorted(breaks, x, side="right") - 1, 0), last)
+            # the last break <= x (0 if none) by bisection: np.searchsorted's side="right",
+            # without compiling numpy's generic search (complex comparisons included)
+            lo, hi = 0, last
+            while lo < hi:
+                mid = (lo + hi + 1) >> 1
+                if breaks[mid] <= x:
+                    lo = mid
+                else:
+                    hi = mid - 1
+            segment = lo
         tau = x - breaks[segment]
         if tau < 0.0:
             value[k] = 0.0
@@ -174,7 +183,7 @@ def tracking_error(spline: PPoly, model: LinearErrorModel) -> TrackingError:
                          offset=model.dc_gain * rest)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def _chain_response(u, h, pole, residues, weight):
     """One pole's Jordan chain driven by the segment polynomials ``u`` (n_seg, deg + 1,
     ascending powers; the last segment is the hold, ``h`` the lengths of the others).

@@ -57,7 +57,7 @@ DERIVATIVES: tuple[tuple[str, str, str], ...] = (
     ("jerk", "mm/s^3", "rad/s^3"))
 #: Claim (a2), Fig. 11 under model error: the plant's J and B are scaled by 1 + e for each e
 #: here, while sliding mode feeds the nominal model forward and the pre-compensation predicts
-#: with it. 20 % is the model error the README measures for an unidentified machine; both
+#: with it. 20 % is the model error docs/claims.md measures for an unidentified machine; both
 #: signs, since a feed-forward law can gain or lose from either.
 DEFAULT_MODEL_ERRORS: tuple[float, ...] = (0.2, -0.2)
 #: Contour error metrics: (summary key, label, unit).

@@ -27,7 +27,7 @@ from ..machine.drives import AXES, ROTARY_AXES
 from .demo_report import _axis_scale, _data_uri, _figure, _write, figure_png
 
 from .progress import Progress
-from ..files import make_folder
+from ..files import OutputSet, make_folder
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..machine.machine_file import Machine
@@ -468,7 +468,13 @@ def _html(result: "CompareResult", figures) -> str:
 def write_compare_report(result: "CompareResult") -> list[Path]:
     """Write the comparison's folder: one PNG per figure, the tables as CSV, ``compare.md``
     (claims and tables) and ``index.html`` with everything embedded. Overwrites only these
-    files; returns their paths, ``index.html`` last."""
+    files, all together when all are written (:class:`~precontour.files.OutputSet`); returns
+    their paths, ``index.html`` last."""
+    with OutputSet():
+        return _write_compare_files(result)
+
+
+def _write_compare_files(result: "CompareResult") -> list[Path]:
     out = make_folder(result.out_dir)
     names = compare_file_names(result)
     figures = _figures(result)

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Callable, Mapping, TextIO
 
 import numpy as np
-from scipy import optimize, signal
 
 from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate

@@ -1,4 +1,4 @@
-"""Report: figures, tables and a self-contained HTML page of the pipeline's results.
+"""Report: figures, tables and an HTML page of the pipeline's results.
 
 The only module that imports matplotlib (Agg, drawn on :class:`matplotlib.figure.Figure`
 objects without pyplot's global state). Figure functions take result objects or plain arrays
@@ -28,7 +28,7 @@ from matplotlib.ticker import MaxNLocator
 from ..prediction.contour import ContourErrors
 from ..machine.drives import AXES, ROTARY_AXES
 
-from ..files import atomic_write, make_folder
+from ..files import OutputSet, atomic_write, make_folder
 from ..machine.machine_file import Machine
 from .demo import MACHINE_MODELS, DemoResult, compute_demo, demo_file_names
 from .progress import Progress
@@ -73,6 +73,10 @@ TABLE_COLUMNS: tuple[str, ...] = (("path", "controller", "machine", "trajectory"
 
 _UNCOMP, _COMP = "uncompensated", "pre-compensated"
 _DPI = 110
+#: Titles at a fixed height (matplotlib's default place): left to matplotlib, each title
+#: measures every tick label of its axes at every draw to dodge them, a third of the time a
+#: figure takes to draw.
+_TITLE_Y = 1.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -331,17 +335,24 @@ def plot_contour(t: np.ndarray, uncompensated: ContourErrors, compensated: Conto
         left.set_ylim(bottom=0.0)
         left.grid(alpha=0.3)
         left.set_title(f"{name}: max {unc.max():.3g} \u2192 {comp.max():.3g} {unit}, "
-                       f"mean {unc.mean():.3g} \u2192 {comp.mean():.3g} {unit}", fontsize=9)
+                       f"mean {unc.mean():.3g} \u2192 {comp.mean():.3g} {unit}", fontsize=9,
+                       y=_TITLE_Y)
         note = ""
         if exact_compensated is not None:
             exact = 1e3 * getattr(exact_compensated, attr)
             right.plot(t, exact, color="k", lw=0.7, ls="--",
                        label="pre-compensated, exact linear model")
             note = f"; exact model: max {exact.max():.3g}, mean {exact.mean():.3g} {unit}"
-        right.set_title(f"log scale{note}", fontsize=9)
-        top = max(unc.max(), comp.max(), np.finfo(float).tiny)
-        right.set_yscale("log")
+        right.set_title(f"log scale{note}", fontsize=9, y=_TITLE_Y)
+        top = max(unc.max(), comp.max())
+        if not top > 0.0:
+            # errors that are all zero (the orientation of a program that never turns the
+            # tool) have nothing to show on a log scale: any decades will do
+            top = 1.0
+        # limits first: switching to log autoscales, which warns on data without a positive
+        # value
         right.set_ylim(1e-4 * top, 2.0 * top)
+        right.set_yscale("log")
         right.grid(alpha=0.3)
     handles, labels = grid[0, 1].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3,
@@ -372,11 +383,18 @@ def save_png(fig: Figure, file: str | Path) -> Path:
 
 def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = None) -> list[Path]:
     """Write the report folder of a demo: one PNG per figure, the table as CSV and Markdown,
-    and ``index.html`` with everything embedded. Overwrites only these files.
+    and ``index.html``, which shows the table and the PNG files beside it (linked, not
+    embedded: base64 made the page 1.3 MB and took time to write). Overwrites only these
+    files.
 
-    Returns the paths written, ``index.html`` last.
+    Returns the paths written, ``index.html`` last. The files replace the old ones together,
+    when all are written (:class:`~precontour.files.OutputSet`).
     """
-    rows = table_rows(result) if rows is None else rows
+    with OutputSet():
+        return _write_demo_files(result, table_rows(result) if rows is None else rows)
+
+
+def _write_demo_files(result: "DemoResult", rows: Sequence[Mapping]) -> list[Path]:
     out = make_folder(result.out_dir)
     names = demo_file_names(result.paths, result.controllers)
     written = [write_table_csv(rows, out / names["table.csv"]),
@@ -390,7 +408,7 @@ def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = Non
             f"{summary.peak_feed:.1f} mm/s on {result.machine.name}")))
         written.append(_write(out / names[f"path:{path}"], png))
         figures = [(f"Path '{path}': tool tip and orientations, and the five axis commands "
-                    "(like the paper's Fig. 8).", png)]
+                    "(like the paper's Fig. 8).", names[f"path:{path}"])]
         for controller in result.controllers:
             case = result.case(path, controller)
             realistic_unc = case.run("realistic", _UNCOMP)
@@ -402,7 +420,7 @@ def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = Non
             written.append(_write(out / names[f"contour:{path}:{controller}"], png))
             figures.append((f"Path '{path}', {controller}: contour errors on the realistic "
                             "machine without and with contour pre-compensation (like the "
-                            "paper's Figs. 18-19).", png))
+                            "paper's Figs. 18-19).", names[f"contour:{path}:{controller}"]))
             t = case.trajectory.t
             png = figure_png(plot_tracking(
                 t, case.prediction(t), realistic_unc.simulation.e,
@@ -411,7 +429,7 @@ def write_demo_report(result: "DemoResult", rows: Sequence[Mapping] | None = Non
             written.append(_write(out / names[f"tracking:{path}:{controller}"], png))
             figures.append((f"Path '{path}', {controller}: predicted vs simulated axis tracking "
                             "errors of the uncompensated commands (like the paper's Fig. 17).",
-                            png))
+                            names[f"tracking:{path}:{controller}"]))
         sections.append((path, figures))
     written.append(_write(out / names["index.html"],
                           _demo_html(result, rows, sections).encode("utf-8")))
@@ -485,8 +503,9 @@ def _demo_html(result: "DemoResult", rows, sections) -> str:
     ]
     for path, figures in sections:
         body.append(f"<h2>Path '{html.escape(path)}'</h2>")
-        for caption, png in figures:
-            body.append(f'<figure><img src="{_data_uri(png)}" alt="{html.escape(caption)}">'
+        for caption, file_name in figures:
+            body.append(f'<figure><img src="{html.escape(file_name)}" '
+                        f'alt="{html.escape(caption)}">'
                         f"<figcaption>{html.escape(caption)}</figcaption></figure>")
     style = ("body{font-family:sans-serif;max-width:1320px;margin:1em auto;padding:0 1em;"
              "color:#222}table{border-collapse:collapse;font-size:13px}"

@@ -11,12 +11,21 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from ..errors import InputError
+from ..files import OutputSet, make_folder
 from ..machine.drives import AXES
 from .demo_report import _axis_scale, _data_uri, _figure, _write, figure_png
 
 #: Bode plot frequency range, Hz.
 BODE_RANGE = (0.5, 500.0)
+
+
+def identify_report_files(axes=AXES) -> tuple[str, ...]:
+    """The files of an identification report whose identified axes are ``axes``."""
+    return ("bode.png",) + tuple(f"residuals_{axis}.png" for axis in axes) + ("index.html",)
+
+
+#: Every file an identification report may write (checked before identifying).
+IDENTIFY_REPORT_FILES: tuple[str, ...] = identify_report_files()
 
 
 def plot_bode(result) -> "Figure":  # noqa: F821
@@ -84,16 +93,22 @@ def _rows_html(result) -> str:
 
 def write_identify_report(result, out_dir: str | Path) -> Path:
     """Write ``bode.png``, ``residuals_<axis>.png`` and ``index.html`` to ``out_dir`` (created
-    if missing; only these files are overwritten). Returns the path of ``index.html``."""
+    if missing; only these files are overwritten, all together: an
+    :class:`~precontour.files.OutputSet`). Returns the path of ``index.html``."""
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create report folder: {exc}", source=str(out)) from None
-    figures = [("bode.png", "Closed loops x/X, identified vs base", figure_png(plot_bode(result)))]
-    for axis in result.axes:
-        figures.append((f"residuals_{axis}.png", f"Axis {axis}: tracking error, measured vs model",
+    names = identify_report_files(tuple(result.axes))
+    figures = [(names[0], "Closed loops x/X, identified vs base", figure_png(plot_bode(result)))]
+    for name, axis in zip(names[1:-1], result.axes):
+        figures.append((name, f"Axis {axis}: tracking error, measured vs model",
                         figure_png(plot_residuals(result, axis))))
+    outputs = OutputSet()
+    out = outputs.folder(out, names, what="identification report")
+    with outputs:
+        return _write_report(result, out, figures)
+
+
+def _write_report(result, out: Path, figures) -> Path:
+    make_folder(out)
     for name, _, png in figures:
         _write(out / name, png)
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes.values())

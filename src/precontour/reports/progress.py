@@ -8,7 +8,11 @@ from __future__ import annotations
 
 import sys
 import time
+import weakref
 from typing import Callable, TextIO
+
+from .. import kernels
+from ..files import check_signals
 
 #: ``progress(done, total, message)``: called before each step (done = steps finished).
 Progress = Callable[[int, int, str], None]
@@ -40,8 +44,12 @@ class ProgressLine:
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.start = time.perf_counter()
         self._width = 0
+        if self.tty:
+            # the note before the first compile goes on a line of its own, not after ours
+            kernels.before_note.append(weakref.WeakMethod(self.close))
 
     def __call__(self, done: int, total: int, message: str) -> None:
+        check_signals()  # a step begins: where a SIGTERM or Ctrl-C stops the command
         text = f"[{time.perf_counter() - self.start:7.1f} s] {done:3d}/{total} {message}"
         if self.tty:
             pad = max(0, self._width - len(text))

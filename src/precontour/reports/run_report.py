@@ -1,10 +1,14 @@
 """Report of ``precontour run`` (:mod:`precontour.workflow`): figures, the end-of-run table
 and a self-contained ``index.html`` in a folder.
 
-Figures: simulated contour errors over time, uncompensated vs compensated (the demo's
-:func:`~precontour.reports.demo_report.plot_contour`); and the speed along the program as a
-fraction of the planned one with each axis's peak jerk against its limit, before and after
-the local slow-downs. Only the report's own files are written.
+Figures: simulated contour errors, uncompensated vs compensated, as an envelope over the whole
+program (the largest error in each of at most :data:`ENVELOPE_WINDOWS` time windows, so that an
+hour-long program stays readable) with a zoom on the samples around the largest remaining
+errors, named by source line and time (:func:`plot_contour_envelope`); and the speed along the
+program as a fraction of the planned one with each axis's peak jerk against its limit, before
+and after the local slow-downs. The summary and the page name the line and time of the largest
+errors (:meth:`~precontour.workflow.RunResult.largest_errors`). Only the report's own files are
+written.
 """
 
 from __future__ import annotations
@@ -19,14 +23,125 @@ from matplotlib.figure import Figure
 from ..machine.drives import AXES
 from ..tables import write_text
 from ..trajectory.limits import AxisLimits, check_limits
-from .demo_report import _data_uri, _figure, figure_png, plot_contour, save_png
+from .demo_report import _data_uri, _figure, figure_png, save_png
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..workflow import RunResult
+    from ..workflow import LargestError, RunResult
 
 #: Files of a run report, in the folder given.
 RUN_REPORT_FILES: tuple[str, ...] = ("contour_errors.png", "speed_and_limits.png",
                                      "summary.txt", "index.html")
+
+
+#: Largest number of time windows of the envelope plot: a few per pixel column of the figure.
+ENVELOPE_WINDOWS = 600
+#: Half width of the zoom around the largest remaining error, s: at least this, and at least
+#: ZOOM_SAMPLES samples, at most the whole program.
+ZOOM_HALF_WIDTH = 0.1
+ZOOM_SAMPLES = 50
+#: Decades shown below the top of a log axis; smaller errors are drawn at its floor.
+LOG_DECADES = 4
+
+
+def window_peaks(t: np.ndarray, values: np.ndarray, windows: int = ENVELOPE_WINDOWS
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The largest value in each of at most ``windows`` runs of consecutive samples of about
+    equal length: ``(edges, peaks)``, ``edges`` the ``len(peaks) + 1`` window bounds in time.
+    Each sample holds for one sampling period: a window ends where the next begins, the last
+    one sampling period after ``t[-1]``."""
+    n = t.size
+    starts = np.unique(np.linspace(0, n, min(windows, n) + 1).astype(np.int64)[:-1])
+    peaks = np.maximum.reduceat(values, starts)
+    step = (t[-1] - t[0]) / (n - 1) if n > 1 else 1.0
+    edges = np.append(t[starts], t[-1] + step)
+    return edges, peaks
+
+
+def plot_contour_envelope(result: "RunResult") -> Figure:
+    """Simulated contour errors of ``run``, uncompensated and compensated, tip (top) and
+    orientation (bottom). Left: the largest error per time window over the whole program
+    (:func:`window_peaks`), log scale, the largest of each marked. Right: every sample around
+    the largest remaining (compensated) error, with its source line and time."""
+    t = result.limited.reference.t
+    largest = {(e.quantity, e.commands): e for e in result.largest_errors()}
+    fig = _figure(12.0, 7.4)
+    grid = fig.subplots(2, 2, gridspec_kw={"width_ratios": [3, 2]})
+    rows = (("tip", "tool tip", "um"), ("orientation", "orientation", "mrad"))
+    for (attr, name, unit), (left, right) in zip(rows, grid):
+        before = 1e3 * getattr(result.simulated_before, attr)
+        after = 1e3 * getattr(result.simulated_after, attr)
+        top = max(float(before.max()), float(after.max()))
+        for label, values, color in (("uncompensated", before, "tab:red"),
+                                     ("compensated", after, "tab:blue")):
+            edges, peaks = window_peaks(t, values)
+            left.stairs(_floored(peaks, top), edges, baseline=None, color=color, lw=1.0,
+                        label=f"{label}, largest per {_window_label(edges)}")
+            worst = largest[(attr, label)]
+            left.plot([worst.time], [_floored(1e3 * worst.value, top)], "v", color=color,
+                      ms=6)
+        _scale(left, top)
+        left.set_ylabel(f"{name} contour error ({unit})")
+        left.set_xlim(t[0], edges[-1])
+        worst = largest[(attr, "compensated")]
+        left.set_title(f"{name}: max {before.max():.3g} \u2192 {after.max():.3g} {unit}; "
+                       f"largest remaining at {_where(worst)}", fontsize=9)
+        span = _zoom(t, worst.index)
+        # time from the largest remaining error, in ms: absolute times of a long program
+        # would crowd the ticks
+        for label, values, color in (("uncompensated", before, "tab:red"),
+                                     ("compensated", after, "tab:blue")):
+            right.plot(1e3 * (t[span] - worst.time), _floored(values[span], top), color=color,
+                       lw=1.0)
+        right.axvline(0.0, color="k", lw=0.6, ls=":")
+        _scale(right, top)
+        right.set_title(f"zoom: {_where(worst)}", fontsize=9)
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=2,
+               fontsize=9, frameon=False)
+    grid[1, 0].set_xlabel("time (s)")
+    grid[1, 1].set_xlabel("time from the largest remaining error (ms)")
+    fig.suptitle(f"{Path(result.source).name} on {result.machine.name}, {result.controller}: "
+                 "realistic virtual machine", fontsize=11)
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.87, bottom=0.08, hspace=0.25, wspace=0.15)
+    return fig
+
+
+def _floored(values, top: float):
+    """Values drawn on a log axis: at least its floor (zero errors, at rest, included)."""
+    return np.maximum(values, _floor(top))
+
+
+def _floor(top: float) -> float:
+    return 10.0 ** -LOG_DECADES * top if top > 0 else 1.0
+
+
+def _scale(ax, top: float) -> None:
+    """A log axis LOG_DECADES decades deep under ``top``; linear when every error is zero
+    (no motion of that kind), where a log axis has nothing to show."""
+    if top > 0:
+        ax.set_yscale("log")
+        ax.set_ylim(_floor(top), 2.0 * top)
+    else:
+        ax.set_ylim(0.0, 2.0)
+    ax.grid(alpha=0.3)
+
+
+def _zoom(t: np.ndarray, k: int) -> slice:
+    half = max(ZOOM_HALF_WIDTH, ZOOM_SAMPLES * (t[1] - t[0]) if t.size > 1 else 0.0)
+    first, last = np.searchsorted(t, [t[k] - half, t[k] + half])
+    return slice(int(first), int(max(last, first + 1)))
+
+
+def _where(largest: "LargestError") -> str:
+    if largest.value == 0:
+        return "nowhere (zero throughout)"
+    at = f"{largest.where} {largest.line}, " if largest.line is not None else ""
+    return f"{at}t = {largest.time:.3f} s"
+
+
+def _window_label(edges: np.ndarray) -> str:
+    width = float(np.median(np.diff(edges)))
+    return f"{1e3 * width:.3g} ms" if width < 1.0 else f"{width:.3g} s"
 
 
 def plot_speed_and_limits(result: "RunResult") -> Figure:
@@ -67,10 +182,7 @@ def write_run_report(result: "RunResult", out_dir: str | Path) -> list[Path]:
     """Write the report files (:data:`RUN_REPORT_FILES`) into ``out_dir`` (created)."""
     out = Path(out_dir)
     out.mkdir(parents=False, exist_ok=True)
-    commands = result.commands
-    contour = plot_contour(commands.t, result.simulated_before, result.simulated_after,
-                           title=f"{Path(result.source).name} on {result.machine.name}, "
-                                 f"{result.controller}: realistic virtual machine")
+    contour = plot_contour_envelope(result)
     speed = plot_speed_and_limits(result)
     pngs = [figure_png(contour), figure_png(speed)]
     files = [save_png(contour, out / RUN_REPORT_FILES[0]),
@@ -94,6 +206,8 @@ pre{{background:#f4f4f4;padding:1em}}img{{max-width:100%}}</style></head><body>
 ({result.limited.rounds} compensation round(s)); checked on the realistic virtual machine
 (discrete controller at the servo period, friction, feed-forward friction compensation).</p>
 <pre>{html.escape(table)}</pre>
+<h2>Where the largest errors are</h2>
+{_largest_table(result)}
 <h2>Contour errors on the virtual machine</h2>
 <img src="{_data_uri(pngs[0])}" alt="contour errors">
 <h2>Speed and limits</h2>
@@ -101,3 +215,15 @@ pre{{background:#f4f4f4;padding:1em}}img{{max-width:100%}}</style></head><body>
 <img src="{_data_uri(pngs[1])}" alt="speed and limits">
 </body></html>
 """
+
+
+def _largest_table(result: "RunResult") -> str:
+    rows = ["<table><tr><th>error</th><th>commands</th><th>largest</th><th>where</th>"
+            "<th>time (s)</th></tr>"]
+    for e in result.largest_errors():
+        digits = 3 if e.quantity == "tip" else 4
+        where = f"{e.where} {e.line}" if e.line is not None else "-"
+        rows.append(f"<tr><td>{e.quantity}</td><td>{e.commands}</td>"
+                    f"<td>{1e3 * e.value:.{digits}f} {e.unit}</td><td>{where}</td>"
+                    f"<td>{e.time:.3f}</td></tr>")
+    return "\n".join(rows + ["</table>"])

@@ -13,7 +13,6 @@ interpolant of the command that the other continuous-time laws follow.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 from scipy.interpolate import make_interp_spline
 
 #: Controller types this module simulates.
@@ -26,6 +25,8 @@ def simulate_closed_loop(t: np.ndarray, q: np.ndarray, controller, mode: str, ts
 
     The drives start at rest at q[0]; x - q[0] = (x/X)(X - q[0]).
     """
+    from scipy import signal     # here: scipy.signal takes 0.5 s to import
+
     q0 = q[0]
     if mode == "continuous":
         # lfilter is cheap: 8 first-order-hold points per sub-step bring the hold's error

@@ -55,9 +55,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-import numba
 import numpy as np
 
+from ..kernels import jit
 from ..machine.controllers import Controller
 from ..machine.drives import Drive
 
@@ -75,7 +75,7 @@ _N_PARAMS = 13
 N_DISCRETE_STATES = 5
 N_CONTINUOUS_STATES = 3
 
-_jit = numba.njit(cache=True, nogil=True)
+_jit = jit
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,6 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
@@ -36,6 +35,7 @@ from .closed_loop import CLOSED_LOOP_TYPES, simulate_closed_loop
 from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError, plain
+from ..kernels import jit
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
@@ -58,7 +58,7 @@ FF_SPEED_DEADBAND = 1e-8
 
 _N_AXES = len(AXES)
 
-_jit = numba.njit(cache=True, nogil=True)
+_jit = jit
 
 
 # --------------------------------------------------------------------------------------------
@@ -549,10 +549,9 @@ def _branch(fr, positive, w):
 @_jit
 def _friction(fr, w):
     """Tf(w) with Tf(0) = 0 (the nominal model for the feed-forward)."""
-    if w > 0.0:
-        return _branch(fr, True, w)
-    if w < 0.0:
-        return _branch(fr, False, w)
+    if w > 0.0 or w < 0.0:
+        # (the branch as a variable: each literal True / False compiled _branch once more)
+        return _branch(fr, w > 0.0, w)
     return 0.0
 
 
@@ -739,11 +738,13 @@ def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, fr_ff, fr
     x, w = q0, 0.0
     s0 = s1 = s2 = 0.0
     stuck = friction
-    positive = True
+    # (typed booleans and integers, not literals: a literal argument compiles the callee once
+    # more, for its value)
+    positive = np.bool_(True)
     ts_pos, ts_neg = fr[0], fr[4]
     work = np.empty(6)
     taylor = np.empty(6)
-    l = 5
+    l = np.intp(5)
     for k in range(n):
         q_act[k] = x
         w_out[k] = w
@@ -755,7 +756,7 @@ def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, fr_ff, fr
                 kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
                 X1, Xd1, Xdd1, tff1)
             if stuck and (tau1 > ts_pos or tau1 < ts_neg):
-                stuck = False
+                stuck = np.bool_(False)
                 positive = tau1 > 0.0
                 dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
                     kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,

@@ -49,11 +49,11 @@ from ._common import FEED_UNITS, ReadReport  # noqa: E402
 from .apt import read_apt, read_apt_report  # noqa: E402
 from .clcsv import read_clcsv, read_clcsv_report  # noqa: E402
 from .gcode import read_gcode, read_gcode_report, read_program  # noqa: E402
-from .program import Program, Stop  # noqa: E402
+from .program import Program, ProgrammedMoves, Stop  # noqa: E402
 from .readers import (EXTENSIONS, read_toolpath, read_toolpath_report,  # noqa: E402
                       toolpath_format)
 
 __all__ = ["ToolPath", "ReadReport", "FEED_UNITS", "EXTENSIONS", "read_toolpath",
            "read_toolpath_report", "toolpath_format", "read_clcsv", "read_clcsv_report",
            "read_apt", "read_apt_report", "read_gcode", "read_gcode_report", "read_program",
-           "Program", "Stop"]
+           "Program", "ProgrammedMoves", "Stop"]

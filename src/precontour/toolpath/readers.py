@@ -67,7 +67,7 @@ def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
     format : {"clcsv", "apt", "gcode"}, optional
         Override the extension.
     tcp : bool
-        G-code only: the whole program is in tool centre point mode (see
+        G-code only: the program starts in tool centre point mode (see
         :func:`~precontour.toolpath.gcode.read_program`).
 
     Returns

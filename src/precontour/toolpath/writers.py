@@ -23,14 +23,15 @@ from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
-from numba import njit
 
+from ..defaults import GCODE_TOL_LINEAR as DEFAULT_TOL_LINEAR
+from ..defaults import GCODE_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..errors import InputError
+from ..kernels import jit
 from ..machine.drives import AXES
 
-#: Default decimation tolerances: 1 um on X, Y, Z and 1e-5 rad on A, C (``--tol 0.001,1e-5``).
-DEFAULT_TOL_LINEAR = 1e-3
-DEFAULT_TOL_ROTARY = 1e-5
+# DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default decimation tolerances (1 um on X, Y, Z,
+# 1e-5 rad on A, C: ``--tol 0.001,1e-5``), are defined in precontour.defaults.
 #: Decimals written: X Y Z in mm (5 nm rounding), A C in degrees (8.7e-9 rad rounding).
 LINEAR_DECIMALS = 5
 ANGLE_DECIMALS = 6
@@ -42,14 +43,22 @@ LINEAR_ROUNDING = 0.5 * 10.0**-LINEAR_DECIMALS
 ROTARY_ROUNDING = math.radians(0.5 * 10.0**-ANGLE_DECIMALS)
 #: Program end words: when a kept source line already ends the program, none is added.
 _PROGRAM_END = re.compile(r"(?<![A-Z0-9.])M0*(2|30)(?![0-9.])", re.IGNORECASE)
+#: What the program needs of the CNC's planner, and where LinuxCNC 2.9's does not give it
+#: (measured with LinuxCNC itself, docs/linuxcnc.md): the G-code header says so, with the
+#: number of blocks that move a rotary axis.
+PLANNER_NOTE = ("timing: each block must take exactly its 60/F s, blended at full speed "
+                "into the next. LinuxCNC 2.9's planner does not for blocks that move "
+                "{rotary}, here {count} of {blocks}: it blends them parabolically and "
+                "stretches them. On LinuxCNC run the stream instead, run --stream or export "
+                "--format halstreamer; precontour's docs/linuxcnc.md has the numbers")
 #: streamer's config letter for one float pin.
 STREAMER_FLOAT = "f"
 #: Seconds of samples the streamer FIFO holds, to ride through pauses of the feeding program.
 STREAMER_BUFFER_SECONDS = 2.0
 
-__all__ = ["DEFAULT_TOL_LINEAR", "DEFAULT_TOL_ROTARY", "ProgramInfo", "GcodeProgram",
-           "decimate", "gcode_program", "halstreamer_lines", "streamer_depth",
-           "axis_tolerances"]
+__all__ = ["DEFAULT_TOL_LINEAR", "DEFAULT_TOL_ROTARY", "PLANNER_NOTE", "ProgramInfo",
+           "GcodeProgram", "decimate", "gcode_program", "halstreamer_lines", "rotary_moves",
+           "streamer_depth", "axis_tolerances"]
 
 
 @dataclass(frozen=True)
@@ -84,12 +93,16 @@ class GcodeProgram:
         ``G1`` and ``G4`` blocks written (the ``G0`` not counted).
     tolerance : ndarray, shape (5,)
         Per-axis decimation tolerance, mm and rad.
+    rotary_blocks : int
+        Blocks that move a rotary axis (its written word changes). LinuxCNC 2.9's planner
+        blends those parabolically and stretches them (see :data:`PLANNER_NOTE`).
     """
 
     text: str
     kept: np.ndarray
     n_blocks: int
     tolerance: np.ndarray
+    rotary_blocks: int = 0
 
 
 def axis_tolerances(tol_linear: float = DEFAULT_TOL_LINEAR,
@@ -130,7 +143,7 @@ def decimate(t: np.ndarray, q: np.ndarray, tolerance: np.ndarray,
     return np.flatnonzero(_decimate_scan(t, q, tolerance, must_keep))
 
 
-@njit(cache=True)
+@jit
 def _decimate_scan(t, q, tol, must_keep):  # pragma: no cover - compiled
     n, m = q.shape
     keep = np.zeros(n, dtype=np.bool_)
@@ -266,15 +279,23 @@ def gcode_program(t: np.ndarray, q: np.ndarray, *, tolerance: np.ndarray | None 
     elif passthrough:
         before_start = [text for _, text in passthrough]
 
+    rotary_blocks = rotary_moves(q[kept])
     text_lines = list(_gcode_lines(t, q, kept, info, tolerance, before_start, inserted,
-                                    tuple(axis_names)))
+                                    tuple(axis_names), int(rotary_blocks.sum())))
     n_blocks = kept.size - 1
     return GcodeProgram(text="".join(text_lines), kept=kept, n_blocks=n_blocks,
-                        tolerance=tolerance)
+                        tolerance=tolerance, rotary_blocks=int(rotary_blocks.sum()))
+
+
+def rotary_moves(q_kept: np.ndarray) -> np.ndarray:
+    """For each block between consecutive rows of ``q_kept`` (block ends, rad): whether a
+    rotary axis word changes as written (degrees, :data:`ANGLE_DECIMALS`)."""
+    written = np.round(np.degrees(np.asarray(q_kept, dtype=float)[:, 3:]), ANGLE_DECIMALS)
+    return np.any(np.diff(written, axis=0) != 0, axis=1)
 
 
 def _gcode_lines(t, q, kept, info, tolerance, before_start, inserted,
-                 axis_names) -> Iterator[str]:
+                 axis_names, rotary_blocks) -> Iterator[str]:
     duration = t[kept[-1]] - t[kept[0]]
     linear, rotary = " ".join(axis_names[:3]), " ".join(axis_names[3:])
     yield "%\n"
@@ -285,6 +306,10 @@ def _gcode_lines(t, q, kept, info, tolerance, before_start, inserted,
     yield (f"(tolerance {tolerance[0]:g} mm on {linear}, {tolerance[3]:g} rad on {rotary}; "
            f"{kept.size - 1} blocks, {duration:.3f} s of motion)\n")
     yield "(inverse-time feed G93: F = 60 / block time in s)\n"
+    note = PLANNER_NOTE.format(rotary=" or ".join(axis_names[3:]), count=rotary_blocks,
+                               blocks=kept.size - 1)
+    for part in _wrap(note):
+        yield f"({_comment(part)})\n"
     yield "G21 G90 G94\n"
     for text in before_start:
         yield text.rstrip("\n") + "\n"
@@ -320,6 +345,18 @@ def _axis_words(q: np.ndarray, axis_names: Sequence[str] = AXES) -> list[str]:
                               np.round(np.degrees(q[:, 3:]), ANGLE_DECIMALS)]) + 0.0  # no -0
     fmt = " ".join(f"{axis}{{:.{d}f}}" for axis, d in zip(axis_names, decimals))
     return [fmt.format(*row) for row in values.tolist()]
+
+
+def _wrap(text: str, width: int = 90) -> list[str]:
+    """``text`` in lines of at most about ``width`` characters, broken between words."""
+    lines, current = [], ""
+    for word in text.split():
+        if current and len(current) + 1 + len(word) > width:
+            lines.append(current)
+            current = word
+        else:
+            current = f"{current} {word}" if current else word
+    return lines + ([current] if current else [])
 
 
 def _comment(text: str) -> str:

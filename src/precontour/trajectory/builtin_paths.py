@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..defaults import BUILTIN_PATHS
 from ..errors import InputError, plain
 from ..toolpath import ToolPath
 
-#: Names accepted by :func:`builtin_path`.
-BUILTIN_PATHS: tuple[str, ...] = ("paper", "circle", "cone", "fan")
+# BUILTIN_PATHS, the names accepted by :func:`builtin_path`, is defined in precontour.defaults.
 
 
 def _orientation(A: np.ndarray, C: np.ndarray) -> np.ndarray:

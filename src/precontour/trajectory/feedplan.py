@@ -34,14 +34,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from ..defaults import DEFAULT_FEED
 from ..machine.drives import AXES
 from ..errors import PrecontourError, ToolPathError, plain
+from ..kernels import jit, run_chunks
 
-#: Default maximum tool tip feed, mm/s (the paper's test path).
-DEFAULT_FEED = 100.0
+# DEFAULT_FEED, the default maximum tool tip feed in mm/s, is defined in precontour.defaults.
 #: Default tool tip acceleration limit, mm/s^2 (0.2 g, a usual contouring setting).
 DEFAULT_ACCELERATION = 2000.0
 #: Default tangential jerk limit, mm/s^3 (50 m/s^3, a usual contouring setting; filter 80 ms).
@@ -53,6 +53,8 @@ CURVATURE_SHARE = 0.5
 MARGIN = 0.98
 #: Relative round-off tolerated when checking the sampled trajectory against a limit.
 CHECK_RTOL = 1e-9
+#: Fewest grid points or samples per thread of the compiled limit curves and checks.
+_GRAIN = 4096
 
 
 @dataclass(frozen=True)
@@ -241,7 +243,7 @@ def _grid_geometry(path, machine, s_grid):
     return dP, ddP, q
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _gradient_rows(i, last):
     """The rows :func:`numpy.gradient` differences at row i (central inside, one-sided at
     the ends) and how many grid steps apart they are."""
@@ -252,21 +254,21 @@ def _gradient_rows(i, last):
     return i + 1, i - 1, 2.0
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _slope_first(q, i, k, h):
     """:func:`numpy.gradient` of column k of q at row i, with numpy's operations."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
     return (q[upper, k] - q[lower, k]) / (steps * h)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _slope_second(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_first` at row i."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
     return (_slope_first(q, upper, k, h) - _slope_first(q, lower, k, h)) / (steps * h)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _slope_third(q, i, k, h):
     """:func:`numpy.gradient` of :func:`_slope_second` at row i."""
     upper, lower, steps = _gradient_rows(i, q.shape[0] - 1)
@@ -285,7 +287,7 @@ def _erode(values, speed, reach, h):
                         float(h), float(np.max(moving)), float(np.min(moving)))
 
 
-@numba.njit(cache=True)
+@jit
 def _erode_bands(values, speed, reach, h, fastest, slowest):
     n = values.size
     out = values.copy()
@@ -344,7 +346,7 @@ def _check_continuity(geometry, s_grid):
                               f"{h:.3g} mm near s = {s_grid[k]:.6g} mm of the path: {why}")
 
 
-@numba.njit(cache=True)
+@jit
 def _first_jump(q, h, first_axis, limit):
     """The first grid row and axis (from ``first_axis`` on) whose change over one grid step,
     |dq/ds| h, exceeds ``limit``, and that change; (-1, -1, 0) if none."""
@@ -366,13 +368,21 @@ def _limit_curves(geometry, speed_cap, lim, scale, reach, h):
     return v_lim, np.maximum(a_lim, 1e-9 * MARGIN * lim.acceleration)
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _speed_limit(dP, ddP, q, h, feed_of_s, feed, acceleration, v, a, j, m, c):
     """Stage 1: v_lim(s) before scaling, the least of the feed, tip curvature and axis
     velocity, acceleration and jerk limits (a zero derivative sets no limit). The roots are
     monotone, so each order's least bound is rooted once."""
     out = np.empty(dP.size)
-    for i in numba.prange(dP.size):
+    run_chunks(_speed_limit_at, dP.size, dP, ddP, q, float(h), feed_of_s, float(feed),
+               float(acceleration), v, a, j, float(m), float(c), out, grain=_GRAIN)
+    return out
+
+
+@jit(error_model="numpy")
+def _speed_limit_at(begin, end, dP, ddP, q, h, feed_of_s, feed, acceleration, v, a, j, m, c,
+                    out):
+    """:func:`_speed_limit` at grid points [begin, end)."""
+    for i in range(begin, end):
         first = min(feed, feed_of_s[i] / dP[i])
         second = c * m * acceleration / ddP[i]
         third = np.inf
@@ -381,15 +391,21 @@ def _speed_limit(dP, ddP, q, h, feed_of_s, feed, acceleration, v, a, j, m, c):
             second = min(second, c * m * a[k] / abs(_slope_second(q, i, k, h)))
             third = min(third, c * m * j[k] / abs(_slope_third(q, i, k, h)))
         out[i] = min(first, np.sqrt(second), np.cbrt(third))
-    return out
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _acceleration_limit(ddP, q, h, v_lim, acceleration, a, m):
     """Stage 1: a_lim(s) before scaling, the tangential acceleration the tip and every axis
     leave over at v_lim (an axis that does not move sets no limit)."""
     out = np.empty(ddP.size)
-    for i in numba.prange(ddP.size):
+    run_chunks(_acceleration_limit_at, ddP.size, ddP, q, float(h), v_lim, float(acceleration),
+               a, float(m), out, grain=_GRAIN)
+    return out
+
+
+@jit(error_model="numpy")
+def _acceleration_limit_at(begin, end, ddP, q, h, v_lim, acceleration, a, m, out):
+    """:func:`_acceleration_limit` at grid points [begin, end)."""
+    for i in range(begin, end):
         v2 = v_lim[i] * v_lim[i]
         best = m * acceleration - ddP[i] * v2
         for k in range(a.size):
@@ -398,7 +414,6 @@ def _acceleration_limit(ddP, q, h, v_lim, acceleration, a, m):
             if not np.isnan(left):
                 best = min(best, left)
         out[i] = best
-    return out
 
 
 def _acceleration_passes(v_lim, a_lim, h):
@@ -444,24 +459,27 @@ def _violation(s, P, q, ts, feed_of_s, s_grid, lim):
         return np.zeros(max(s.size - 2, 0))
     h_idx = np.clip(np.rint(s / s_grid[1]).astype(int), 0, s_grid.size - 1)
     # s as a column, so that the difference helpers serve s, P and q alike
-    return _violation_ratios(s.reshape(-1, 1), np.ascontiguousarray(P),
-                             np.ascontiguousarray(q), ts, feed_of_s[h_idx], lim.feed,
-                             lim.acceleration, lim.jerk, lim.v, lim.a, lim.j)
+    ratio = np.empty(s.size - 2)
+    run_chunks(_violation_ratios, ratio.size, np.ascontiguousarray(s).reshape(-1, 1),
+               np.ascontiguousarray(P), np.ascontiguousarray(q), float(ts), feed_of_s[h_idx],
+               float(lim.feed), float(lim.acceleration), float(lim.jerk), lim.v, lim.a, lim.j,
+               ratio, grain=_GRAIN)
+    return ratio
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline="always")
 def _second_difference(x, k, i):
     """(x[k+2] - x[k+1]) - (x[k+1] - x[k]) in column i, as :func:`numpy.diff` rounds it."""
     return (x[k + 2, i] - x[k + 1, i]) - (x[k + 1, i] - x[k, i])
 
 
-@numba.njit(cache=True, inline="always")
+@jit(inline="always")
 def _third_difference(x, k, i):
     """The third difference of column i at k..k+3, as :func:`numpy.diff` rounds it."""
     return _second_difference(x, k + 1, i) - _second_difference(x, k, i)
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _first_ratio(s, P, q, k, ts, feed_here, feed, v):
     """Largest ratio of the first differences over interval k..k+1."""
     d0 = P[k + 1, 0] - P[k, 0]
@@ -474,7 +492,7 @@ def _first_ratio(s, P, q, k, ts, feed_here, feed, v):
     return r
 
 
-@numba.njit(cache=True, inline="always")
+@jit(forceinline=True)
 def _axis_jerk_ratio(q, k, ts3, j):
     """Largest |third difference / ts^3 / limit| of the axes over samples k..k+3 (before
     the cube root)."""
@@ -484,14 +502,15 @@ def _axis_jerk_ratio(q, k, ts3, j):
     return r
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def _violation_ratios(s, P, q, ts, feed_here, feed, acceleration, jerk, v, a, j):
+@jit(error_model="numpy")
+def _violation_ratios(begin, end, s, P, q, ts, feed_here, feed, acceleration, jerk, v, a, j,
+                      ratio):
+    """The ratios of interior samples begin + 1 .. end (see :func:`_violation`)."""
     # The roots are monotone, so each order's largest ratio is rooted once.
     n = s.shape[0]
-    ratio = np.empty(n - 2)
     ts2 = ts**2     # powers as Python rounds them (not ts * ts * ts)
     ts3 = ts**3
-    for r in numba.prange(n - 2):     # interior sample r + 1
+    for r in range(begin, end):     # interior sample r + 1
         first = max(_first_ratio(s, P, q, r, ts, feed_here, feed, v),
                     _first_ratio(s, P, q, r + 1, ts, feed_here, feed, v))
         d0 = _second_difference(P, r, 0)
@@ -507,4 +526,3 @@ def _violation_ratios(s, P, q, ts, feed_here, feed, acceleration, jerk, v, a, j)
         if r >= 1:
             third = max(third, _axis_jerk_ratio(q, r - 1, ts3, j))
         ratio[r] = max(first, np.sqrt(second), third ** (1.0 / 3.0))
-    return ratio

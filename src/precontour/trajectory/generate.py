@@ -8,11 +8,11 @@ plus :func:`summarize`, the numbers the command line prints about a trajectory.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..defaults import DEFAULT_DWELL, default_max_samples
 from ..errors import InputError, plain
 from ..machine.drives import AXES
 from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
@@ -21,28 +21,8 @@ from .pathspline import L_EQ, fit_toolpath
 from .sampled import Trajectory
 
 
-#: Default time (s) the final command is held so that the drives settle inside the trajectory.
-DEFAULT_DWELL = 0.2
-
-#: Peak memory per trajectory sample of the commands a machinist's program goes through
-#: (trajectory, predict, compensate, simulate, run), bytes, with a margin:
-#: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample (built-in ``paper``
-#: path, 2,769 vs 8,867 and 21,529 samples) at most 1.6 kB for those, and 4.8-6.7 kB for the
-#: research command ``compare`` (six compensations, seven simulations), which is not sized
-#: for hour-long programs.
-BYTES_PER_SAMPLE = 2_000
-#: Share of the physical memory the default sample limit may use.
-MEMORY_SHARE = 0.5
-
-
-def default_max_samples() -> int:
-    """The default largest number of trajectory samples: :data:`MEMORY_SHARE` of this
-    machine's physical memory at :data:`BYTES_PER_SAMPLE` (1 GiB assumed if unknown)."""
-    try:
-        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
-        memory = 1 << 30
-    return max(100_000, int(MEMORY_SHARE * memory / BYTES_PER_SAMPLE))
+# DEFAULT_DWELL and default_max_samples (the default sample limit, sized to this machine's
+# memory: BYTES_PER_SAMPLE, MEMORY_SHARE) are defined in precontour.defaults, for the help.
 
 
 def estimate_samples(length: float, feed: float, ts: float, dwell: float) -> float:
@@ -51,10 +31,28 @@ def estimate_samples(length: float, feed: float, ts: float, dwell: float) -> flo
     return length / (feed * ts) + dwell / ts + 1.0
 
 
+def check_sample_estimate(estimate: float, limit: int | None, detail: str, *,
+                          source: str | None = None, bound: str = "at least",
+                          what: str = "trajectory", option: str | None = "--max-samples"
+                          ) -> None:
+    """Refuse, before any sample is made, a ``what`` whose estimated sample count exceeds
+    ``limit`` (default :func:`default_max_samples`): the one check and message of every
+    command that makes long trajectories (``trajectory``, ``run``, ``excite``). ``detail``
+    says where the estimate comes from, ``bound`` how it bounds the count."""
+    limit = default_max_samples() if limit is None else int(limit)
+    if not estimate <= limit:
+        how = f"max_samples, option {option}" if option else "max_samples"
+        raise InputError(
+            f"the {what} would have {bound} {estimate:.3g} samples ({detail}), more than the "
+            f"limit of {limit} ({how}; default sized to this machine's memory)",
+            source=source or None, field="max_samples")
+
+
 def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
                         acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
                         l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL,
-                        max_samples: int | None = None) -> Trajectory:
+                        max_samples: int | None = None,
+                        lines: np.ndarray | None = None) -> Trajectory:
     """Time-stamped axis commands that follow ``toolpath`` on ``machine`` within its limits.
 
     Parameters
@@ -82,13 +80,18 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
         Largest number of samples (default :func:`default_max_samples`, sized to this
         machine's memory). Checked on an estimate (:func:`estimate_samples`) before any
         sample is made, and again on the planned motion.
+    lines : array_like of int, shape (M,), optional
+        Source line of each tool-path point (:attr:`precontour.toolpath.ReadReport.lines`).
+        Given, the trajectory's ``line`` is at each sample the line of the point the tool is
+        moving to (of the first point at the start, of the last during the final dwell), so
+        that what happens at a sample can be traced to a line of the file.
 
     Returns
     -------
     Trajectory
         ``t`` uniform from 0 with step ``ts``; ``q`` (N, 5) from path-mode inverse kinematics
-        (C unwrapped, continuous through A = 0); reference ``P``, ``O`` at each sample.
-        Starts and stops at rest.
+        (C unwrapped, continuous through A = 0); reference ``P``, ``O`` at each sample;
+        ``line`` when ``lines`` is given. Starts and stops at rest.
     """
     for name, value in (("feed", feed), ("ts", ts)):
         if not (np.isfinite(value) and value > 0):
@@ -96,22 +99,32 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
     if not (dwell >= 0 and np.isfinite(dwell)):
         raise InputError(f"dwell must be a finite number >= 0, got {plain(dwell)!r}", field="dwell")
     limit = default_max_samples() if max_samples is None else int(max_samples)
+    if lines is not None:
+        lines = np.asarray(lines)
+        if lines.shape != (toolpath.n_points,):
+            raise ValueError(f"lines must have one entry per tool-path point "
+                             f"({toolpath.n_points}), got shape {lines.shape}")
     path = fit_toolpath(toolpath, l_eq=l_eq)
-    estimate = estimate_samples(path.length, feed, ts, dwell)
-    if not estimate <= limit:
-        raise InputError(
-            f"the trajectory would have at least {estimate:.3g} samples ({path.length:.6g} mm "
-            f"of path at most {feed:g} mm/s, sampled every {ts:g} s, and a {dwell:g} s dwell), "
-            f"more than the limit of {limit} (max_samples, option --max-samples; default sized "
-            "to this machine's memory)", source=toolpath.source or None, field="max_samples")
+    check_sample_estimate(estimate_samples(path.length, feed, ts, dwell), limit,
+                          f"{path.length:.6g} mm of path at most {feed:g} mm/s, sampled every "
+                          f"{ts:g} s, and a {dwell:g} s dwell", source=toolpath.source)
     n_hold = int(round(dwell / ts))
     profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
                         programmed_feed=toolpath.feed, max_samples=max(1, limit - n_hold))
     t, q, P, O = profile.t, profile.q, profile.P, profile.O
+    line = None
+    if lines is not None:
+        # the kept point each sample moves to: the first s_points[k] >= s (round-off at the
+        # end clipped to the last point)
+        k = np.minimum(np.searchsorted(path.s_points, profile.s, side="left"),
+                       path.s_points.size - 1)
+        line = lines[path.point_index[k]]
     if n_hold:
         t = np.concatenate([t, t[-1] + ts * np.arange(1, n_hold + 1)])
         q, P, O = (np.concatenate([a, np.repeat(a[-1:], n_hold, axis=0)]) for a in (q, P, O))
-    return Trajectory(t=t, q=q, P=P, O=O)
+        if line is not None:
+            line = np.concatenate([line, np.repeat(line[-1:], n_hold)])
+    return Trajectory(t=t, q=q, P=P, O=O, line=line)
 
 
 @dataclass(frozen=True)

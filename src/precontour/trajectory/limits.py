@@ -1,8 +1,10 @@
 """The machine's axis limits, and whether sampled axis commands keep them.
 
 :class:`AxisLimits` gathers what a machine file gives: each drive's travel
-(``p_min``/``p_max``, and the kinematics' tilt travel ``tilt_limits``), velocity,
+(``p_min``/``p_max``, and the kinematics' tilt travel ``tilt_limits``; a tilt axis never
+travels beyond +-180 deg, :data:`TILT_TRAVEL`, as the G-code reader holds too), velocity,
 acceleration and jerk limits (``v_max``, ``a_max``, ``j_max``); ``inf`` where none is given.
+:func:`check_travel` names the first row of commands outside a travel.
 :func:`check_limits` measures commands with finite differences at the sampling period (first,
 second and third differences, as :func:`~precontour.trajectory.generate.summarize` does) and
 returns, besides the worst excess of each axis and quantity, the time-stretch factor each
@@ -16,8 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from ..machine.drives import AXES, ROTARY_AXES
 from .feedplan import CHECK_RTOL, axis_limits
+
+#: Largest |tilt| (rad) on every machine, whatever its file says: half a turn either way (a
+#: tilt axis beyond it is no tilt; the G-code reader refuses programs beyond it too).
+TILT_TRAVEL = np.pi
 
 QUANTITIES: tuple[str, ...] = ("position", "velocity", "acceleration", "jerk")
 _UNITS = {"position": "", "velocity": "/s", "acceleration": "/s^2", "jerk": "/s^3"}
@@ -40,10 +47,8 @@ class AxisLimits:
              for d in machine.drives], dtype=float)
         low, high = get("p_min", -np.inf), get("p_max", np.inf)
         tilt_low, tilt_high = getattr(machine.kinematics, "tilt_limits", (None, None))
-        if tilt_low is not None:
-            low[3] = max(low[3], tilt_low)
-        if tilt_high is not None:
-            high[3] = min(high[3], tilt_high)
+        low[3] = max(low[3], -TILT_TRAVEL if tilt_low is None else tilt_low, -TILT_TRAVEL)
+        high[3] = min(high[3], TILT_TRAVEL if tilt_high is None else tilt_high, TILT_TRAVEL)
         v, acc, j = axis_limits(machine)
         return cls(position_min=low, position_max=high, velocity=v, acceleration=acc, jerk=j)
 
@@ -153,3 +158,33 @@ def check_limits(q: np.ndarray, ts: float, limits: AxisLimits, *, t0: float = 0.
             np.maximum(stretch[part], need, out=stretch[part])
             np.maximum(worst[part], largest, out=worst[part])
     return LimitCheck(stretch=stretch, ratio=worst, excesses=tuple(excesses), peaks=peaks)
+
+
+def check_travel(q: np.ndarray, limits: AxisLimits, *, source: str | None = None,
+                 axis_names=AXES, first_row: int = 1) -> None:
+    """Raise :class:`~precontour.errors.InputError` naming the first row (``first_row`` for
+    the first sample) and axis of commands ``q`` (N, 5) outside the axis's travel, with the
+    value and the travel; for a rotary axis whose values would fit in degrees, say that
+    degrees seem to have been given where radians are expected."""
+    q = np.asarray(q, dtype=float)
+    out = (q < limits.position_min) | (q > limits.position_max)
+    if not out.any():
+        return
+    rows = np.flatnonzero(out.any(axis=1))
+    k = int(rows[0])
+    i = int(np.flatnonzero(out[k])[0])
+    name, value = axis_names[i], float(q[k, i])
+    low, high = float(limits.position_min[i]), float(limits.position_max[i])
+    rotary = AXES[i] in ROTARY_AXES
+    unit = "rad" if rotary else "mm"
+    message = (f"{name} = {value:.6g} {unit} is outside the {name} axis's travel "
+               f"[{low:.6g}, {high:.6g}] {unit}")
+    if rotary:
+        message += f" ({np.degrees(low):.6g} to {np.degrees(high):.6g} deg)"
+        column = np.radians(q[:, i])
+        if np.all((column >= low) & (column <= high)):
+            message += (f"; the file gives {name} in rad: were degrees given? ({value:.6g} deg "
+                        f"would be {np.radians(value):.6g} rad)")
+    if rows.size > 1:
+        message += f"; {rows.size} rows are outside"
+    raise InputError(message, source=source, row=k + first_row, field=AXES[i])

@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
-import numba
 import numpy as np
 from scipy.interpolate import BSpline
 
 from ..errors import InputError, ToolPathError, plain
+from ..kernels import jit, run_chunks
 from ..machine.kinematics import angle_between, normalize_orientations
 from ..piecewise import (bspline_layout, bspline_pieces, derivative, evaluate,
                          interpolating_spline, joint_control, locate, taylor_coefficients_at)
@@ -109,8 +109,13 @@ class PathSpline:
         shapes ``np.shape(s) + (3,)`` twice, then ``np.shape(s)``; the last two are empty
         without ``with_tip_derivatives``."""
         x = np.asarray(s, dtype=float)
-        P, O, speed, bend = _sample(*self._pieces, np.ascontiguousarray(x.ravel()),
-                                    bool(with_tip_derivatives))
+        points = np.ascontiguousarray(x.ravel())
+        n = points.size
+        P, O = np.empty((n, 3)), np.empty((n, 3))
+        m = n if with_tip_derivatives else 0
+        speed, bend = np.empty(m), np.empty(m)
+        run_chunks(_sample, (n + _CHUNK - 1) // _CHUNK, *self._pieces, points,
+                   bool(with_tip_derivatives), P, O, speed, bend)
         if not with_tip_derivatives:
             return P.reshape(x.shape + (3,)), O.reshape(x.shape + (3,)), speed, bend
         return (P.reshape(x.shape + (3,)), O.reshape(x.shape + (3,)), speed.reshape(x.shape),
@@ -241,18 +246,21 @@ def _segment_lengths(tip: BSpline, orient: BSpline, s: np.ndarray, l_eq: float) 
     """Combined length of each segment [s_i, s_i+1] of the splines: 5-point Gauss-Legendre
     of sqrt(|P'|^2 + l_eq^2 |O'|^2), O = v/|v|."""
     knots, control, breaks, spans = bspline_layout(tip, joint_control(tip, orient))
-    return _gauss_lengths(knots, control, tip.k, breaks, spans, s, float(l_eq), _GAUSS_X,
-                          _GAUSS_W)
+    s = np.ascontiguousarray(s, dtype=float)
+    out = np.empty(s.size - 1)
+    run_chunks(_gauss_lengths, (out.size + _CHUNK - 1) // _CHUNK, knots, control, int(tip.k),
+               breaks, spans, s, float(l_eq), _GAUSS_X, _GAUSS_W, out)
+    return out
 
 
-@numba.njit(cache=True, parallel=True)
-def _gauss_lengths(knots, control, degree, breaks, spans, s, l_eq, nodes, weights):
+@jit
+def _gauss_lengths(first, stop, knots, control, degree, breaks, spans, s, l_eq, nodes, weights,
+                   out):
     # Each segment lies in one piece (the breaks are data sites); the piece's Taylor
     # coefficients are made when the segments reach it, not stored for the whole spline.
     n = s.size - 1
     dims = control.shape[1]
-    out = np.empty(n)
-    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+    for chunk in range(first, stop):
         coef = np.empty((1, degree + 1, dims))
         basis = np.zeros((degree + 1, degree + 1))
         left = np.zeros(degree + 1)
@@ -285,18 +293,12 @@ def _gauss_lengths(knots, control, degree, breaks, spans, s, l_eq, nodes, weight
                 turn2 = max(dvdv - vdv * vdv / vv, 0.0) / vv
                 total += weights[g] * np.sqrt(tip2 + l_eq * l_eq * turn2)
             out[i] = 0.5 * h * total
-    return out
 
 
-@numba.njit(cache=True, parallel=True)
-def _sample(breaks, coef, x, with_tip_derivatives):
+@jit
+def _sample(first, stop, breaks, coef, x, with_tip_derivatives, P, O, speed, bend):
     n = x.size
-    P = np.empty((n, 3))
-    O = np.empty((n, 3))
-    m = n if with_tip_derivatives else 0
-    speed = np.empty(m)
-    bend = np.empty(m)
-    for chunk in numba.prange((n + _CHUNK - 1) // _CHUNK):
+    for chunk in range(first, stop):
         piece = 0
         for i in range(chunk * _CHUNK, min(n, (chunk + 1) * _CHUNK)):
             piece = locate(breaks, x[i], piece)
@@ -315,4 +317,3 @@ def _sample(breaks, coef, x, with_tip_derivatives):
                     second += derivative(coef, piece, u, 2, d) ** 2
                 speed[i] = np.sqrt(first)
                 bend[i] = np.sqrt(second)
-    return P, O, speed, bend

@@ -53,32 +53,35 @@ import math
 
 import numpy as np
 
+from ..defaults import DEFAULT_CORNER_TOLERANCE as DEFAULT_TOLERANCE
 from ..errors import PrecontourError
 from .feedplan import CHECK_RTOL, axis_limits
-from .generate import DEFAULT_DWELL
+from .generate import DEFAULT_DWELL, default_max_samples
 from .sampled import Trajectory
 
 #: The plan aims this fraction below each axis limit; the check uses the full limits.
 MARGIN = 0.98
-#: Default corner tolerance, mm: the blend of a corner passes within this of it.
-DEFAULT_TOLERANCE = 0.01
+# DEFAULT_TOLERANCE, the default corner tolerance in mm (the blend of a corner passes within
+# this of it), is defined in precontour.defaults.
 #: A corner whose blend would need the speed cut below this fraction is a stop instead.
 SHARP_CORNER = 0.5
 #: Corner blends below this (mm) are round-off, not corners.
 BLEND_ROUND_OFF = 1e-9
 #: Planning passes per segment before giving up.
 MAX_PASSES = 30
-#: Largest number of samples a program's trajectory may have (memory guard: 5 * 10^7 samples
-#: are about 14 hours at 1 kHz and 9 GB of arrays).
+#: The former fixed sample limit of a program's trajectory (5 * 10^7 samples are about 14 hours
+#: at 1 kHz and 9 GB of arrays). The default is now the memory-sized limit of CL data
+#: (``default_max_samples``), so that ``run`` and ``trajectory`` refuse the same programs.
 MAX_SAMPLES = 50_000_000
 
-__all__ = ["program_trajectory", "DEFAULT_TOLERANCE", "MARGIN", "MAX_SAMPLES"]
+__all__ = ["program_trajectory", "check_program_samples", "DEFAULT_TOLERANCE", "MARGIN",
+           "MAX_SAMPLES"]
 
 
 def program_trajectory(program, machine, *, ts: float | None = None,
                        dwell: float = DEFAULT_DWELL,
                        tolerance: float | None = DEFAULT_TOLERANCE,
-                       max_samples: int = MAX_SAMPLES) -> Trajectory:
+                       max_samples: int | None = None) -> Trajectory:
     """Axis commands at the servo period that execute ``program`` on ``machine``.
 
     Parameters
@@ -99,8 +102,10 @@ def program_trajectory(program, machine, *, ts: float | None = None,
         where the program sets none; ``None``: blend as the limits allow there. The
         program's own G64 P, and G61/G61.1 (exact path: stop at every corner), take
         precedence.
-    max_samples : int
-        Refuse programs whose trajectory would be longer (memory guard).
+    max_samples : int, optional
+        Refuse programs whose trajectory would be longer (memory guard; default
+        :func:`~precontour.trajectory.generate.default_max_samples`, as for CL data), on an
+        estimate before any sample is made (:func:`check_program_samples`).
 
     Returns
     -------
@@ -116,11 +121,7 @@ def program_trajectory(program, machine, *, ts: float | None = None,
         A rapid on an axis without a velocity limit, a trajectory longer than
         ``max_samples``, or limits that could not be met (naming the program line).
     """
-    ts = float(machine.servo_period if ts is None else ts)
-    if not (math.isfinite(ts) and ts > 0):
-        raise ValueError(f"ts must be positive and finite, got {ts!r}")
-    if not (math.isfinite(dwell) and dwell >= 0):
-        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    ts = _check_period(machine, ts, dwell)
     limits = np.stack(axis_limits(machine))          # (3, 5): v, a, j
     points = program.points
     dq = np.diff(points, axis=0)
@@ -129,11 +130,7 @@ def program_trajectory(program, machine, *, ts: float | None = None,
     n_moves = program.n_moves
     holds = _holds(program, dwell, ts)
     bounds = _segment_bounds(program)
-    estimate = (durations.sum() + sum(h for _, h, _ in holds) * ts) / ts + len(bounds) * 50
-    if not estimate <= max_samples:
-        raise PrecontourError(f"{program.source}: the program's trajectory would have about "
-                              f"{estimate:.3g} samples at ts = {ts:g} s, more than "
-                              f"{max_samples}; raise ts or split the program")
+    _check_estimate(program, durations, holds, bounds, ts, max_samples)
 
     if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be positive and finite (or None), got {tolerance!r}")
@@ -163,6 +160,39 @@ def program_trajectory(program, machine, *, ts: float | None = None,
     P, O = machine.kinematics.forward(q)
     t = np.arange(q.shape[0]) * ts
     return Trajectory(t=t, q=q, P=P, O=O, line=line)
+
+
+def check_program_samples(program, machine, *, ts: float | None = None,
+                          dwell: float = DEFAULT_DWELL, max_samples: int | None = None) -> None:
+    """Refuse, before planning, a program whose trajectory would have more than
+    ``max_samples`` samples (the estimate and message :func:`program_trajectory` uses): a
+    reader of the program can call it before any progress is shown."""
+    ts = _check_period(machine, ts, dwell)
+    dq = np.diff(program.points, axis=0)
+    durations = _nominal_durations(program, dq, axis_limits(machine)[0])
+    _check_estimate(program, durations, _holds(program, dwell, ts), _segment_bounds(program),
+                    ts, max_samples)
+
+
+def _check_period(machine, ts, dwell) -> float:
+    ts = float(machine.servo_period if ts is None else ts)
+    if not (math.isfinite(ts) and ts > 0):
+        raise ValueError(f"ts must be positive and finite, got {ts!r}")
+    if not (math.isfinite(dwell) and dwell >= 0):
+        raise ValueError(f"dwell must be a finite number >= 0, got {dwell!r}")
+    return ts
+
+
+def _check_estimate(program, durations, holds, bounds, ts, max_samples) -> None:
+    """The sample estimate: the nominal block times, the holds, and about 50 samples of
+    filter start-up and run-out per segment; above ``max_samples`` (default
+    :func:`~precontour.trajectory.generate.default_max_samples`) the program is refused."""
+    limit = default_max_samples() if max_samples is None else int(max_samples)
+    estimate = (durations.sum() + sum(h for _, h, _ in holds) * ts) / ts + len(bounds) * 50
+    if not estimate <= limit:
+        raise PrecontourError(f"{program.source}: the program's trajectory would have about "
+                              f"{estimate:.3g} samples at ts = {ts:g} s, more than "
+                              f"{limit}; raise ts or split the program")
 
 
 def _nominal_durations(program, dq, v_max):

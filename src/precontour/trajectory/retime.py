@@ -31,7 +31,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import maximum_filter1d
-from scipy.signal import oaconvolve
 
 from .sampled import Trajectory
 
@@ -166,6 +165,8 @@ def added_stretch(stretch: np.ndarray, ts: float, *, ramp: float = RAMP_TIME,
     x = np.linspace(-1.0, 1.0, 2 * half + 3)[1:-1]
     bell = (1.0 - x * x) ** 3          # value, slope and curvature vanish at both ends: C2
     bell /= bell.sum()
+    from scipy.signal import oaconvolve     # here: scipy.signal takes 0.5 s to import
+
     smooth = oaconvolve(held, bell, mode="same")
     smooth[smooth < _NEGLIGIBLE] = 0.0
     # Whole samples per window: raise each window's stretch by the factor that rounds it up.

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 
-import numba
 import numpy as np
+
+from ...kernels import jit
 
 #: |horizontal part of O| below which C is treated as undefined (tool along z); the
 #: orientation error this can cause is below this value in rad.
@@ -278,7 +279,7 @@ def _unwrap_path(c_raw: np.ndarray, defined: np.ndarray, period: float,
     return np.interp(np.arange(c_raw.size), index, c_defined)
 
 
-@numba.njit(cache=True)
+@jit
 def _unwrap(p, period):
     """:func:`numpy.unwrap` ``(p, period=period)`` of a 1-D array, to the last bit (the same
     operations in the same order), in one pass instead of seven array passes."""

@@ -1,0 +1,183 @@
+"""`precontour run` on programs, measured: write the sections of docs/programs.md.
+
+Two sections, each rewritten by its own run (``--sections``), each stamped:
+
+``linuxcnc``
+    LinuxCNC's public trunnion-table example programs (``impeller-7bl-xyzac.ngc``,
+    ``boat-xyzac.ngc``; searched where LinuxCNC installs its examples, or ``--demos DIR``) run
+    as ``precontour run PROGRAM --tcp --machine linuxcnc-xyzac-trt --controller pid-high``:
+    planned and compensated duration, slowed windows, kinks smoothed, the simulated contour
+    errors before and after, and the time ``run`` took.
+``learn``
+    The built-in paths and the test paths ``fan25`` and ``flank`` of
+    ``measure_compensation.py``, written as CL data and run as ``precontour run PATH.csv`` with
+    ``--learn 0`` and ``--learn N`` (default 4), both PIDs: reductions of the simulated contour
+    errors and what learning kept.
+
+Run from the repository root:
+
+    python scripts/measure_programs.py [--sections linuxcnc,learn] [--learn 4] [--demos DIR]
+                                       [--output docs/programs.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from docpage import DOCS, markdown_table, replace_section, stamp
+from measure_compensation import TEST_PATHS, fan25_path, flank_path
+from precontour import builtin_path
+from precontour.trajectory.builtin_paths import BUILTIN_PATHS
+from precontour.workflow import RunOutputs, run_program
+
+#: Where LinuxCNC installs the trunnion-table demos (Debian packages, then a source tree).
+DEMO_FOLDERS = (
+    "/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/"
+    "table-rotary-tilting/demos",
+    "/usr/share/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/"
+    "table-rotary-tilting/demos",
+)
+PROGRAMS = ("impeller-7bl-xyzac.ngc", "boat-xyzac.ngc")
+CONTROLLERS = ("pid-high", "pid-low")
+
+
+def reduction(before: float, after: float) -> float:
+    return 100 * (1 - after / before)
+
+
+def summary_pair(result) -> tuple[dict, dict]:
+    return result.simulated_before.summary(), result.simulated_after.summary()
+
+
+def linuxcnc_section(demos: Path | None, folder: Path) -> str:
+    found = []
+    for name in PROGRAMS:
+        candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is not None:
+            found.append(path)
+    rows, places = [], []
+    for path in found:
+        start = time.perf_counter()
+        result = run_program(path, RunOutputs(program=folder / f"{path.stem}-comp.ngc"),
+                             machine="linuxcnc-xyzac-trt", controller="pid-high", tcp=True)
+        took = time.perf_counter() - start
+        before, after = summary_pair(result)
+        planned, final = result.planned.duration, result.commands.duration
+        rows.append([
+            f"`{path.name}` ({len(path.read_text(errors='replace').splitlines()):,} lines)",
+            f"{planned:,.0f} s", f"{final:,.0f} s ({100 * (final / planned - 1):+.1f} %)",
+            len(result.limited.slowdowns), len(result.limited.kinks),
+            f"{before['tip_max_um']:.3g} → {after['tip_max_um']:.3g}",
+            f"{before['tip_mean_um']:.3g} → {after['tip_mean_um']:.3g}",
+            f"{before['ori_max_mrad']:.3g} → {after['ori_max_mrad']:.3g}",
+            f"{result.commands.n_samples:,}", f"{took:.0f} s"])
+        # where the largest remaining tip error is, and what the uncompensated command had there
+        i = int(np.argmax(result.simulated_after.tip))
+        line = result.limited.line
+        places.append(f"- `{path.name}`: the largest remaining tip error, "
+                      f"{1e3 * result.simulated_after.tip[i]:.3g} um, is at t = "
+                      f"{result.commands.t[i]:.3f} s"
+                      + (f", line {int(line[i])}" if line is not None else "")
+                      + f"; the uncompensated command had "
+                      f"{1e3 * result.simulated_before.tip[i]:.3g} um there.")
+    lines = ["## LinuxCNC's example programs", "", stamp(), "",
+             "`precontour run PROGRAM --tcp --machine linuxcnc-xyzac-trt --controller pid-high "
+             "-o OUT.ngc`; contour errors on the realistic virtual machine, before = the "
+             "uncompensated commands on the same timing. \"took\" is the whole `run`, G-code "
+             "included, on the computer of the stamp.", ""]
+    if not rows:
+        lines.append("LinuxCNC's example programs were not found (`--demos DIR`).")
+    else:
+        lines.append(markdown_table(
+            ["program", "planned", "after `run`", "windows slowed", "kinks smoothed",
+             "tip max, um", "tip mean, um", "orientation max, mrad", "samples", "took"],
+            rows, "lrrrrllllr"))
+        lines += [""] + places
+    return "\n".join(lines)
+
+
+def write_cl_csv(toolpath, path: Path) -> Path:
+    """A tool path as CL data (``Px,Py,Pz,Oi,Oj,Ok``, 17 digits: the points as they are)."""
+    np.savetxt(path, np.column_stack([toolpath.P, toolpath.O]), delimiter=",",
+               header="Px,Py,Pz,Oi,Oj,Ok", comments="", fmt="%.17g")
+    return path
+
+
+def learn_section(passes: int, folder: Path) -> str:
+    toolpaths = {name: (lambda name=name: builtin_path(name)) for name in BUILTIN_PATHS}
+    toolpaths.update(fan25=fan25_path, flank=flank_path)
+    rows = []
+    for name, make in toolpaths.items():
+        source = write_cl_csv(make(), folder / f"{name}.csv")
+        for controller in CONTROLLERS:
+            cells = []
+            for learn in (0, passes):
+                result = run_program(source, RunOutputs(program=folder / f"{name}.ngc"),
+                                     machine="zhang2013", controller=controller, learn=learn)
+                before, after = summary_pair(result)
+                cells.append(f"{reduction(before['tip_max_um'], after['tip_max_um']):.1f} / "
+                             f"{reduction(before['tip_mean_um'], after['tip_mean_um']):.1f}, "
+                             f"{reduction(before['ori_max_mrad'], after['ori_max_mrad']):.1f} / "
+                             f"{reduction(before['ori_mean_mrad'], after['ori_mean_mrad']):.1f}")
+                learning = result.limited.result.learning
+                slowed = len(result.limited.slowdowns)
+            cells[-1] = f"**{cells[-1]}**"
+            rows.append([f"`{name}`" if name in TEST_PATHS else name, controller, *cells,
+                         learning.chosen if learning is not None else "-", slowed])
+    return "\n".join([
+        "## `run --learn` on the built-in and test paths", "", stamp(), "",
+        "`precontour run PATH.csv --machine zhang2013 --controller C` on each path as CL "
+        "data, with `--learn 0` (the default) and with "
+        f"`--learn {passes}` ([learning within the limits](run.md#learning-within-the-limits---learn)). "
+        "Reductions of the max / mean contour errors on the realistic virtual machine, tip then "
+        "orientation, in %. Where `run` slows a window down or smooths a kink to keep the "
+        "limits, its errors differ from those of `compensate` "
+        "([compensation, measured](compensation.md)). Where friction holds the axes at a stop is "
+        "decided by nanometres, so these numbers move by a few points with the input's last "
+        "digits.", "",
+        markdown_table(["path", "controller", "`--learn 0`", f"`--learn {passes}`",
+                        "learning kept", "windows slowed (with learning)"], rows, "llllll")])
+
+
+INTRO = """# Programs, measured
+
+What `precontour run` does to whole programs: how much it slows them to keep the machine's
+limits, and the contour errors before and after on the realistic virtual machine. Written by
+`scripts/measure_programs.py`, one section per run of it, each stamped; do not edit by hand.
+How `run` works: [run](run.md). The speed of `run` on long programs: [speed](speed.md)."""
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sections", default="linuxcnc,learn",
+                        help="sections to measure (default linuxcnc,learn)")
+    parser.add_argument("--learn", type=int, default=4, help="learning passes (default 4)")
+    parser.add_argument("--demos", type=Path, default=None,
+                        help="folder holding LinuxCNC's impeller-7bl-xyzac.ngc and boat-xyzac.ngc")
+    parser.add_argument("--output", type=Path, default=DOCS / "programs.md",
+                        help="page whose sections are rewritten (default docs/programs.md)")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        replace_section(args.output, "intro", INTRO)
+        for section in args.sections.split(","):
+            if section == "linuxcnc":
+                body = linuxcnc_section(args.demos, folder)
+            elif section == "learn":
+                body = learn_section(args.learn, folder)
+            else:
+                parser.error(f"unknown section {section!r}")
+            print(f"wrote {replace_section(args.output, section, body)} (section {section})",
+                  file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
