@@ -350,9 +350,13 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
     """``run --learn 4`` on `paper` with pid-high: most of the max tip error removed on the
     realistic virtual machine (88.2 % without learning), the written commands within every
     limit (plain finite differences) and nowhere worse than uncompensated there. Where
-    friction holds the axes at the stop is decided by nanometres: over 10 draws
-    (:func:`conftest.nanometre_draws`) learning kept 0.013-0.051 of the max, hence the bound
-    of 0.06 on the worst of :data:`conftest.FRICTION_DRAWS`."""
+    friction holds the axes at the stop is decided by nanometres: deciding on one exact
+    machine, over 10 draws (:func:`conftest.nanometre_draws`) learning kept 0.013-0.051 of
+    the max; deciding on the ensemble of machines, 0.0132-0.0137 with the newest dependency
+    versions and 0.0132-0.0165 on nine draws and 0.053 on one with the oldest allowed ones
+    (the same learning as ``test_learning_within_limits_keeps_them_and_shrinks_the_max``;
+    0.0132-0.0153 on the first five, which this test runs), hence the bound of 0.025 on the
+    worst of :data:`conftest.FRICTION_DRAWS`."""
     machine = load_machine("zhang2013")
     for draw, path in enumerate(nanometre_draws(builtin_path("paper"))):
         program = tmp_path / f"paper{draw}.csv"
@@ -362,13 +366,15 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
                      "-o", str(tmp_path / f"out{draw}.ngc"),
                      "--commands", str(tmp_path / "cmd.csv")]) == 0
         printed = capsys.readouterr().out
-        assert "learned against the virtual machine within the limits (121 runs)" in printed
+        learned = re.search(r"learned against the virtual machine within the limits "
+                            r"\(5 draw\(s\), (\d+) runs\)", printed)
+        assert learned and int(learned.group(1)) >= 121 * 5
         rows = {line[:22].strip(): [float(v) for v in line[22:].split()]
                 for line in printed.splitlines() if line.startswith("simulated ")
                 and "reduction" not in line}
         before, after = rows["simulated before"], rows["simulated after"]
         assert all(a <= b for a, b in zip(after, before))
-        assert after[0] <= 0.06 * before[0]
+        assert after[0] <= 0.025 * before[0]
         commands = read_trajectory(tmp_path / "cmd.csv")
         for order, key in ((1, "v_max"), (2, "a_max"), (3, "j_max")):
             peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order

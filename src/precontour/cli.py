@@ -201,9 +201,16 @@ def build_parser() -> argparse.ArgumentParser:
                                  "(discrete control at the servo period, Stribeck friction, "
                                  "friction feed-forward) where the linear model misses: stops, "
                                  "reversals, the final dwell; keeps a command only if it is "
-                                 "nowhere worse there than the uncompensated one; each pass "
-                                 "costs 27 virtual-machine runs; 0 = off "
-                                 f"(default {DEFAULT_LEARNING_PASSES}; contour method only)")
+                                 "nowhere worse there than the uncompensated one, on each of "
+                                 "5 draws of that machine (friction, J, B, encoder) and in "
+                                 "every 0.1 s window; each pass costs 27 runs of the 5 draws; "
+                                 f"0 = off (default {DEFAULT_LEARNING_PASSES}; contour method "
+                                 "only)")
+    compensate.add_argument("--ignore-limits", action="store_true",
+                            help="compensate and learn without keeping the machine's velocity, "
+                                 "acceleration and jerk limits (no local slow-down, unsmoothed "
+                                 "learning updates): the commands may break the "
+                                 "limits, so 'export' refuses them as G-code or halstreamer")
     compensate.add_argument("--learn-controller", metavar="NAME", default=None,
                             help="controller the virtual machine runs when learning (default: "
                                  "--controller; for a controller of type tf, which has no "
@@ -651,8 +658,9 @@ def run_compensate(args: argparse.Namespace) -> int:
     from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program
     from .machine.controllers import is_closed_loop
     from .machine.machine_file import load_machine
-    from .simulation.virtual_machine import realistic_actual
+    from .simulation.ensemble import ensemble_actual
     from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
+    from .workflow import compensate_keeping_limits
 
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
@@ -687,7 +695,7 @@ def run_compensate(args: argparse.Namespace) -> int:
                 print(f"  learning against controller {learn_controller.name!r}, a transfer "
                       "function without drives or friction (--learn-controller NAME: the "
                       "controller the drives run, on this file's drives)", file=sys.stderr)
-            machine_actual = realistic_actual(traj.t, machine, learn_controller)
+            machine_actual = ensemble_actual(traj.t, machine, learn_controller)
 
     def learning_progress(label, summary):
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
@@ -698,10 +706,22 @@ def run_compensate(args: argparse.Namespace) -> int:
         learning_progress=learning_progress)
     # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        result = compensate_program(traj, machine.kinematics, models, method=args.method,
-                                    iterations=args.iterations, tol_linear=args.tol_linear,
-                                    tol_rotary=args.tol_rotary, progress=progress,
-                                    **learning_options)
+        if args.ignore_limits:
+            result = compensate_program(traj, machine.kinematics, models, method=args.method,
+                                        iterations=args.iterations, tol_linear=args.tol_linear,
+                                        tol_rotary=args.tol_rotary, progress=progress,
+                                        **learning_options)
+        else:
+            limited = compensate_keeping_limits(
+                traj, machine, args.controller,
+                learn=0 if machine_actual is None else args.learn,
+                learn_controller=learn_controller.name, method=args.method,
+                iterations=args.iterations, tol_linear=args.tol_linear,
+                tol_rotary=args.tol_rotary, learning_progress=learning_progress)
+            result = limited.result
+            print(f"within the machine's limits: "
+                  + (f"slowed in {len(limited.slowdowns)} window(s), "
+                     f"+{limited.added_time:.3f} s" if limited.slowdowns else "not slowed"))
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
@@ -710,7 +730,7 @@ def run_compensate(args: argparse.Namespace) -> int:
     if result.learning is not None:
         learning = result.learning
         print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
-              f"{learning.machine_runs} runs): kept {learning.chosen}")
+              f"{learning.draws} draw(s), {learning.machine_runs} runs): kept {learning.chosen}")
         print(f"  virtual machine: controller {learn_controller.name} ({learn_controller.type}) "
               f"on the drives of {args.machine}")
         for name, summary in (("uncompensated", learning.uncompensated),

@@ -31,6 +31,7 @@ from .errors import InputError, MachineLimitError, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .prediction.contour import ContourErrors
+from .simulation.ensemble import MachineEnsemble, ensemble_actual
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
@@ -266,7 +267,15 @@ class RunResult:
         learning = self.limited.result.learning
         if learning is not None:
             lines.append(f"learned against the virtual machine within the limits "
-                         f"({learning.machine_runs} runs): kept {learning.chosen}")
+                         f"({learning.draws} draw(s), {learning.machine_runs} runs): kept "
+                         f"{learning.chosen}")
+            fallback = learning.fallback
+            if fallback is not None and fallback.blocks:
+                lines.append(f"  where the learned command would be worse than uncompensated "
+                             f"on a draw, it fell back in {len(fallback.blocks)} block(s):")
+                lines.extend("    " + b.format() for b in fallback.blocks[:10])
+                if len(fallback.blocks) > 10:
+                    lines.append(f"    ... and {len(fallback.blocks) - 10} more blocks")
         lines.append(f"duration {duration:.3f} s (planned {planned:.3f} s"
                      + (f"; slowed in {len(slow)} window(s), +{self.limited.added_time:.3f} s"
                         if slow else "; not slowed") + ")")
@@ -340,7 +349,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                 corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
                 max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
-                workers: int | None = 1, learn: int = 0) -> RunResult:
+                workers: int | None = 1, learn: int = 0,
+                ensemble: MachineEnsemble | None = None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``machine`` (a built-in name or a machine file) and ``controller`` have no
     default: a program compensated for another machine than the user's is wrong silently.
@@ -348,7 +358,10 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
     virtual machine after the compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
     0: none; skipped, with a notice, for a program not sampled at the servo period or longer
-    than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples).
+    than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
+    draws of ``ensemble`` (default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
+    result nowhere worse than uncompensated on them, block by block (each source line;
+    :func:`learn_on_ensemble`).
     ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
     when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
     samples; more than 1 needs the calling script's own code under
@@ -401,9 +414,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
         else:
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
-            limited = learn_within_limits(
-                limited, machine_obj.kinematics, models, limits,
-                realistic_actual(reference.t, machine_obj, controller), learn)
+            limited = learn_on_ensemble(limited, machine_obj, controller, models, limits,
+                                        learn, ensemble=ensemble)
             timings["learn"] = time.perf_counter() - start
 
     step(2, f"virtual machine, uncompensated and compensated "
@@ -432,6 +444,45 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
                      stream=outputs.stream)
+
+
+def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
+                      models, limits: AxisLimits, passes: int, *,
+                      ensemble: MachineEnsemble | None = None, progress=None,
+                      **learning) -> LimitedCompensation:
+    """``limited`` improved by ``passes`` passes of learning within ``limits``
+    (:func:`~.compensation.within_limits.learn_within_limits`) against the draws of
+    ``ensemble`` of the realistic virtual machine running ``controller``
+    (:func:`~.simulation.ensemble.ensemble_actual`): every choice is taken on the worst draw,
+    and the command kept is nowhere worse than the uncompensated one on every draw, in whole
+    and block by block."""
+    actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
+    return learn_within_limits(limited, machine_obj.kinematics, models, limits, actual, passes,
+                               progress=progress, **learning)
+
+
+def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller: str, *,
+                              learn: int = 0, learn_controller: str | None = None,
+                              ensemble: MachineEnsemble | None = None, progress=None,
+                              learning_progress=None, **options) -> LimitedCompensation:
+    """What ``compensate`` does by default, as ``run`` does: compensate ``traj`` within the
+    machine's axis limits (slowing it down locally and compensating again where needed;
+    :func:`~.compensation.within_limits.compensate_within_limits` with ``options``), then, for
+    ``learn`` > 0, learn within them against the ensemble of the realistic virtual machine
+    running ``learn_controller`` (default ``controller``; :func:`learn_on_ensemble`). The
+    commands keep the limits, so ``export`` takes them. ``progress(round, message)`` reports
+    the compensation rounds, ``learning_progress(label, summary)`` each command learning tries.
+    """
+    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    limits = AxisLimits.from_machine(machine_obj)
+    limited = compensate_within_limits(traj, machine_obj.kinematics, models, limits,
+                                       line=getattr(traj, "line", None), progress=progress,
+                                       **options)
+    if learn:
+        limited = learn_on_ensemble(limited, machine_obj, learn_controller or controller,
+                                    models, limits, learn, ensemble=ensemble,
+                                    progress=learning_progress)
+    return limited
 
 
 def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
@@ -570,6 +621,6 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
 
 
 __all__ = ["EXPORT_FORMATS", "LargestError", "RunOutputs", "RunProgram", "RunResult",
-           "ExportResult", "check_run_outputs", "largest_error",
-           "export_commands", "export_format", "load_program_trajectory", "plan_run_program",
-           "read_run_program", "run_program", "write_run_outputs"]
+           "ExportResult", "check_run_outputs", "compensate_keeping_limits", "largest_error",
+           "export_commands", "export_format", "learn_on_ensemble", "load_program_trajectory",
+           "plan_run_program", "read_run_program", "run_program", "write_run_outputs"]

@@ -15,6 +15,7 @@ from precontour.compensation.within_limits import compensate_within_limits, lear
 from precontour.machine.machine_file import load_machine
 from precontour.errors import MachineLimitError
 from precontour.prediction.contour import ReferencePath, contour_errors
+from precontour.simulation.ensemble import MachineEnsemble, ensemble_actual
 from precontour.simulation.virtual_machine import REALISTIC, simulate
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
@@ -181,31 +182,73 @@ def test_kinks_are_smoothed_instead_of_slowed(tmp_path, monkeypatch):
     assert after < 0.35 * before
 
 
+def _nowhere_worse_on_every_draw(reference, q, machine, controller, ensemble, line=None):
+    """Issue 21 sections 1 and 3, checked independently of the code under test: each draw of
+    ``ensemble`` simulated on its own (``simulate`` with the draw's options), the contour
+    errors of the uncompensated and of ``q`` compared draw by draw in whole (max and mean,
+    tip and orientation) and block by block (each 0.1 s window, or each source line of
+    ``line``), the worst draw of ``q`` within the uncompensated command's worst draw plus
+    0.1 um / 1 urad or 5 %. Returns the largest block excess beyond that (<= 0: kept)."""
+    path = ReferencePath.from_trajectory(reference)
+    n = reference.n_samples
+    if line is None:
+        edges = list(range(0, n, 100)) + [n]
+    else:
+        edges = [0] + [k for k in range(1, n) if line[k] != line[k - 1]] + [n]
+    worst = {}
+    for label, command in (("before", reference.q), ("after", q)):
+        tip = np.zeros(len(edges) - 1)
+        ori = np.zeros(len(edges) - 1)
+        summaries = []
+        for options in ensemble.options(n):
+            errors = contour_errors(path, simulate(reference.t, command, machine, controller,
+                                                   **REALISTIC, **options).q_act,
+                                    machine.kinematics)
+            summaries.append(errors.summary())
+            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+                tip[k] = max(tip[k], errors.tip[a:b].max())
+                ori[k] = max(ori[k], errors.orientation[a:b].max())
+        worst[label] = (tip, ori, summaries)
+    for before, after in zip(worst["before"][2], worst["after"][2]):
+        assert all(after[key] <= before[key] for key in before), (before, after)
+    tip0, ori0, _ = worst["before"]
+    tip1, ori1, _ = worst["after"]
+    excess = np.maximum(tip1 - tip0 - np.maximum(1e-4, 0.05 * tip0),
+                        1e2 * (ori1 - ori0 - np.maximum(1e-6, 0.05 * ori0)))
+    return float(excess.max())
+
+
 def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
     """``run --learn``: on `paper` with pid-high the commands within limits (the linear pass,
     which keeps them there) leave 4.4 um of the 37 um max tip error on the realistic machine;
-    learning with smoothed updates keeps every limit (plain finite differences) and is
-    nowhere worse than uncompensated. What it leaves is decided by nanometres at the final
-    stop: over 30 draws (:func:`conftest.nanometre_draws`) with the newest dependency versions
-    it left 0.48, 0.51, 1.37 or 1.89 um (17, 2, 7 and 4 draws), over 12 with the oldest
-    allowed ones 0.48, 0.51 or 1.37 um (7, 1, 4; 1.37 um on the exact path there, as a fresh
-    clone measured elsewhere): at most 0.434 of the linear pass's, hence the bound of 0.5 on
-    the worst of :data:`conftest.FRICTION_DRAWS`. Unsmoothed learning (``compensate``) breaks the jerk
-    limit."""
+    learning with smoothed updates on the ensemble of machines keeps every limit (plain finite
+    differences) and is nowhere worse than uncompensated on every draw, in whole and in every
+    0.1 s window. Where friction holds the axes at the final stop is decided by nanometres:
+    taking every choice on one exact machine, what learning left over 30 draws
+    (:func:`conftest.nanometre_draws`) was 0.48, 0.51, 1.37 or 1.89 um (at most 0.434 of the
+    linear pass's); deciding on the ensemble (:class:`MachineEnsemble`), over 10 draws it
+    left 0.489-0.507 um (0.112-0.116 of the linear pass's) with the newest dependency
+    versions, and with the oldest allowed ones 0.488-0.612 um on nine draws and 1.97 um
+    (0.451) on the sixth; the first five, which this test runs, 0.112-0.116 and 0.112-0.130,
+    hence the bound of 0.2 on their worst. Unsmoothed learning (``compensate``) breaks the
+    jerk limit."""
     models = machine.controller("pid-high").error_models(machine.drives)
     limits = AxisLimits.from_machine(machine)
+    ensemble = MachineEnsemble()
     ratios = []
-    for path in nanometre_draws(builtin_path("paper")):
+    for draw, path in enumerate(nanometre_draws(builtin_path("paper"))):
         traj = generate_trajectory(path, machine)
 
         def actual(q):
             return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
         limited = compensate_within_limits(traj, machine.kinematics, models, limits)
-        learned = learn_within_limits(limited, machine.kinematics, models, limits, actual,
+        learned = learn_within_limits(limited, machine.kinematics, models, limits,
+                                      ensemble_actual(limited.reference.t, machine, "pid-high",
+                                                      ensemble),
                                       DEFAULT_LEARNING_PASSES)
         q = learned.result.trajectory.q
-        assert learned.check.ok and learned.result.learning is not None
+        assert learned.check.ok and learned.result.learning.draws == ensemble.draws
         for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
                                                     limits.jerk)):
             assert np.all(peak <= limit * (1 + 1e-9))
@@ -218,6 +261,9 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
                                 on_machine(limited.result.trajectory.q), on_machine(q))
         assert all(after[key] <= before[key] for key in before)
         ratios.append(after["tip_max_um"] / start["tip_max_um"])
-    assert max(ratios) <= 0.5, ratios
+        if draw == 0:
+            assert _nowhere_worse_on_every_draw(learned.reference, q, machine, "pid-high",
+                                                ensemble) <= 0.0
+    assert max(ratios) <= 0.2, ratios
     unsmoothed = compensate(traj, machine.kinematics, models, machine_actual=actual)
     assert np.any(_peaks(unsmoothed.trajectory.q, traj.ts)[2] > limits.jerk)   # the problem

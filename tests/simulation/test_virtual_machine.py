@@ -230,6 +230,139 @@ def test_discrete_friction_matches_event_located_solve_ivp():
     assert err < 2e-6 * np.abs(res.e[:, 0]).max() + 1e-8, err
 
 
+def _hand_loop_x(t, q, *, static=1.0, coulomb=1.0, ff=False):
+    """X axis under pid-low written out: the PID, the feed-forward of the machine file's
+    friction at the mean commanded speed of each period, and the plant (friction torques
+    scaled by ``static`` and ``coulomb``) integrated by solve_ivp (DOP853, event at w = 0)."""
+    drive = MACHINE.drive("X")
+    gains = MACHINE.controller("pid-low").axes[0]
+    nominal = drive.friction
+    f = dataclasses.replace(nominal, Ts_pos=static * nominal.Ts_pos,
+                            Ts_neg=static * nominal.Ts_neg, Tc_pos=coulomb * nominal.Tc_pos,
+                            Tc_neg=coulomb * nominal.Tc_neg)
+    x, w, integ, e_prev = q[0, 0], 0.0, 0.0, 0.0
+    xs = []
+    for k in range(t.size):
+        xs.append(x)
+        e = q[k, 0] - x
+        integ += TS * e
+        u = gains.kp * e + gains.ki * integ + gains.kd * (e - e_prev) / TS
+        e_prev = e
+        if k == t.size - 1:
+            break
+        tau = drive.ka * drive.kt * u
+        if ff:
+            w_cmd = (q[k + 1, 0] - q[k, 0]) / TS / drive.rg
+            tau += float(nominal.torque(np.array(w_cmd))) if abs(w_cmd) >= 1e-8 else 0.0
+        t0 = 0.0
+        while t0 < TS:
+            if w == 0.0:
+                if f.Ts_neg <= tau <= f.Ts_pos:
+                    break  # sticks for the rest of the period
+                side = 1.0 if tau > 0 else -1.0
+            else:
+                side = np.sign(w)
+
+            def rhs(_, y, side=side):
+                tf = f.torque(np.array(side * max(side * y[1], 1e-300)))
+                return [drive.rg * y[1], (tau - drive.B * y[1] - float(tf)) / drive.J]
+
+            def zero(_, y, side=side):
+                return y[1] if y[1] != 0 or t0 > 0 else side * 1e-300
+            zero.terminal = True
+            sol = solve_ivp(rhs, (t0, TS), [x, w], method="DOP853", rtol=1e-11, atol=1e-13,
+                            events=zero)
+            x, w = sol.y[0, -1], sol.y[1, -1]
+            if sol.status == 1:
+                w = 0.0
+                t0 = sol.t[-1]
+                if t0 >= TS * (1 - 1e-12):
+                    break
+            else:
+                break
+    return np.array(xs)
+
+
+def test_scattered_friction_matches_a_hand_written_loop():
+    """The true plant's static and Coulomb friction scaled, the feed-forward keeping the
+    machine file's: X, pid-low, against the loop written out with solve_ivp."""
+    T = 0.6
+    t, q = sampled(T)
+    res = simulate(t, q, MACHINE, "pid-low", friction=True, ff_friction=True,
+                   friction_scale=[[1.1] * 5, [0.9] * 5])
+    xs = _hand_loop_x(t, q, static=1.1, coulomb=0.9, ff=True)
+    err = np.abs(res.q_act[:, 0] - xs).max()
+    assert err < 2e-6 * np.abs(res.e[:, 0]).max() + 1e-8, err
+    # the scatter is visible: far above that agreement
+    nominal = simulate(t, q, MACHINE, "pid-low", friction=True, ff_friction=True)
+    assert np.abs(nominal.q_act[:, 0] - res.q_act[:, 0]).max() > 100 * err
+
+
+def test_a_noisy_encoder_with_an_offset_grid_matches_a_hand_written_loop():
+    """Readings with noise on a grid whose origin is offset: X, pid-low, no friction (a
+    stick-slip loop would amplify round-off at a grid boundary), against the loop written
+    out. A coarse grid (0.1 um) so that quantisation shows."""
+    T = 0.6
+    t, q = sampled(T)
+    noise = np.zeros((t.size, 5))
+    noise[:, 0] = np.random.default_rng(3).normal(0.0, 3e-5, t.size)
+    options = dict(friction=False, ff_friction=False, encoder_resolution=1e-4)
+    res = simulate(t, q, MACHINE, "pid-low", encoder_offset=3.7e-5, encoder_noise=noise,
+                   **options)
+    drive = MACHINE.drive("X")
+    gains = MACHINE.controller("pid-low").axes[0]
+    # the plant x' = rg w, J w' = ka kt u - B w over one period with u held (exact ZOH)
+    from scipy.linalg import expm
+    M = np.zeros((3, 3))
+    M[0, 1] = drive.rg
+    M[1, 1] = -drive.B / drive.J
+    M[1, 2] = drive.ka * drive.kt / drive.J
+    step = expm(M * TS)
+    state = np.array([q[0, 0], 0.0])
+    integ, e_prev, xs = 0.0, 0.0, []
+    for k in range(t.size):
+        xs.append(state[0])
+        y = np.rint((state[0] + noise[k, 0] - 3.7e-5) / 1e-4) * 1e-4 + 3.7e-5
+        e = q[k, 0] - y
+        integ += TS * e
+        u = gains.kp * e + gains.ki * integ + gains.kd * (e - e_prev) / TS
+        e_prev = e
+        state = step[:2, :2] @ state + step[:2, 2] * u
+    err = np.abs(res.q_act[:, 0] - np.array(xs)).max()
+    assert err < 1e-9, err
+    aligned = simulate(t, q, MACHINE, "pid-low", **options)
+    assert np.abs(aligned.q_act[:, 0] - res.q_act[:, 0]).max() > 1e3 * err
+
+
+def test_unit_factors_zero_noise_and_draws_change_nothing():
+    """Factors of 1 (scalar, per axis, per axis and kind), zero noise and a grid origin of 0
+    give the plain simulation bit for bit; per-axis factors act on their axis only; the draws
+    run side by side equal the runs one by one."""
+    plain_run = simulate(T_CMD, Q_CMD, MACHINE, "pid-high")
+    for options in (dict(friction_scale=1.0), dict(friction_scale=np.ones((2, 5))),
+                    dict(inertia_scale=np.ones(5), damping_scale=[1.0] * 5),
+                    dict(encoder_noise=np.zeros_like(Q_CMD))):
+        np.testing.assert_array_equal(simulate(T_CMD, Q_CMD, MACHINE, "pid-high",
+                                               **options).q_act, plain_run.q_act)
+    quantised = simulate(T_CMD, Q_CMD, MACHINE, "pid-high", encoder_resolution=1e-5)
+    np.testing.assert_array_equal(
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", encoder_resolution=1e-5,
+                 encoder_offset=0.0).q_act, quantised.q_act)
+    heavier = simulate(T_CMD, Q_CMD, MACHINE, "pid-high", inertia_scale=1.05).q_act
+    x_only = simulate(T_CMD, Q_CMD, MACHINE, "pid-high", inertia_scale=[1.05, 1, 1, 1, 1]).q_act
+    np.testing.assert_array_equal(x_only[:, 0], heavier[:, 0])
+    np.testing.assert_array_equal(x_only[:, 1:], plain_run.q_act[:, 1:])
+    from precontour.simulation.virtual_machine import simulate_draws
+    draws = [{}, dict(friction_scale=0.9), dict(inertia_scale=[1.05, 1, 1, 1, 0.95]),
+             dict(encoder_resolution=1e-5, encoder_offset=[2e-6] * 5,
+                  encoder_noise=np.full_like(Q_CMD, 1e-6))]
+    together = simulate_draws(T_CMD, Q_CMD, MACHINE, "pid-high", draws)
+    assert together.shape == (4,) + Q_CMD.shape
+    for got, options in zip(together, draws):
+        np.testing.assert_array_equal(
+            got, simulate(T_CMD, Q_CMD, MACHINE, "pid-high", **options).q_act)
+
+
 def test_command_at_rest_stays_at_rest_with_friction():
     q = np.tile([10.0, -5.0, 3.0, 0.5, -1.0], (200, 1))
     t = np.arange(200) * TS
@@ -326,6 +459,18 @@ def test_bad_shapes_and_values():
         simulate(T_CMD, Q_CMD, MACHINE, "pid-high", encoder_resolution=[1e-3, 1e-3])
     with pytest.raises(InputError, match="encoder quantization needs mode='discrete'"):
         simulate(T_CMD, Q_CMD, MACHINE, "pid-high", mode="continuous", encoder_resolution=1e-3)
+    with pytest.raises(InputError, match=r"field 'friction_scale': axis Y: must be finite and >= 0"):
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", friction_scale=[1, -1, 1, 1, 1])
+    with pytest.raises(InputError, match=r"field 'inertia_scale': must be a number or have "
+                                         r"shape \(5,\), got shape \(2, 5\)"):
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", inertia_scale=np.ones((2, 5)))
+    with pytest.raises(InputError, match="an encoder offset needs encoder_resolution"):
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", encoder_offset=1e-6)
+    with pytest.raises(InputError, match=r"field 'encoder_noise': must have shape \(N, 5\)"):
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", encoder_noise=np.zeros(5))
+    with pytest.raises(InputError, match="encoder noise needs mode='discrete'"):
+        simulate(T_CMD, Q_CMD, MACHINE, "pid-high", mode="continuous",
+                 encoder_noise=np.zeros_like(Q_CMD))
     with pytest.raises(MachineFileError, match="unknown controller 'pid-mid'"):
         simulate(T_CMD, Q_CMD, MACHINE, "pid-mid")
 

@@ -123,12 +123,17 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         Passes kept even when they do not improve the prediction (0 to ``iterations``); 1
         applies the paper's single pass unconditionally, as a comparison of methods needs.
     machine_actual : callable, optional
-        A nonlinear machine model, commands (N, 5) -> actual axis positions (N, 5), e.g. the
-        realistic virtual machine, ``lambda q: simulate(traj.t, q, machine, controller).q_act``
-        (:func:`precontour.simulation.simulate`; what ``precontour compensate`` uses). With it (``method="contour"``), the linear result is
+        A nonlinear machine model, commands (N, 5) -> actual axis positions (N, 5), or one
+        motion per draw of an ensemble (D, N, 5): best the draws of the realistic virtual
+        machine, ``ensemble_actual(traj.t, machine, controller)``
+        (:func:`precontour.simulation.ensemble_actual`; what ``precontour compensate
+        --ignore-limits`` uses). With it (``method="contour"``), the linear result is
         improved by ``learning_passes`` passes of learning against it, where friction matters
-        (stops, reversals, the final dwell; :func:`precontour.compensation.stops.learn_at_stops`),
-        and a command is kept only if it is nowhere worse on it than the uncompensated one.
+        (stops, reversals, the final dwell; :func:`precontour.compensation.stops.learn_at_stops`):
+        every choice is taken on the worst draw, and a command is kept only if it is nowhere
+        worse than the uncompensated one on every draw, in whole and in every window of
+        :data:`~precontour.compensation.blocks.BLOCK_WINDOW` (each source line for a
+        trajectory made from a program), falling back locally where needed.
     learning_passes : int
         Passes of that learning (0: the linear result and its settled tails, only checked
         against the model).
@@ -177,8 +182,14 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     def errors_of(q_actual):
         return searched(q_actual)[0]
 
+    def tail_errors_of(q_actual, first):
+        return reference.errors(*kinematics.forward(q_actual), t=reference.t[first:])
+
     q_cmd = traj.q
     q_act = predict(q_cmd)
+    # axis tracking-error pre-compensation (spec section 7's baseline): a local fallback of
+    # learning (compensation/blocks.py)
+    q_tracking = traj.q + (traj.q - q_act)
     before, known = searched(q_act)
     best = (_score(before), q_cmd, before, 0)
     history = [before.summary()]
@@ -210,11 +221,12 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     # ---- hook: stops and reversals under friction (compensation/stops.py) ----
     learning = None
     if machine_actual is not None and method == "contour":
-        q_learned, learning = learn_at_stops(traj.q, q_best, traj.ts, machine_actual, errors_of,
-                                             learning_step(traj, reference, kinematics,
-                                                           hold=hold),
-                                             passes=learning_passes,
-                                             progress=learning_progress)
+        q_learned, learning = learn_at_stops(
+            traj.q, q_best, traj.ts, machine_actual, errors_of,
+            learning_step(traj, reference, kinematics, hold=hold), passes=learning_passes,
+            progress=learning_progress, line=getattr(traj, "line", None),
+            fallbacks=(("tracking-error pre-compensation", hold(q_tracking)),),
+            t0=float(t[0]), tail_errors_of=tail_errors_of)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":

@@ -14,17 +14,26 @@ linear prediction (a callable, in practice the virtual machine with friction, pa
 compensation comes before simulation in the pipeline), in two sequences: the plain update, and
 one whose step along each update is line-searched on the machine. Each iterate is also tried
 with its final-dwell tail settled (held exactly at the end position from a delay after the stop
-on, so that a slowly creeping command does not switch the friction feed-forward on). The command kept
-is the one with the smallest largest error on that machine among those that are nowhere worse
-than the uncompensated command (max and mean, tip and orientation), so compensation never makes
-a maximum worse on the machine it learned against. Where the commands must keep the axis
-limits, each update and settling is smoothed and a command beyond a limit is not kept.
+on, so that a slowly creeping command does not switch the friction feed-forward on). Where the
+commands must keep the axis limits, each update and settling is smoothed and a command beyond a
+limit is not kept.
+
+Where static friction holds an axis is decided by nanometres, so a choice taken on one exact
+simulation is a coin toss (issue 21: on `paper` / `pid-high` the command kept left 0.48, 0.51,
+1.37 or 1.89 um over 30 draws of 1e-9 mm of input noise). The machine model may therefore be an
+ensemble of draws of the machine (:func:`precontour.simulation.ensemble_actual`), and every
+choice is taken on all of them (:mod:`.blocks`): an update learns from the draws' mean motion,
+the line search continues from the step whose worst draw is best, and the command kept is the
+one whose worst draw is best among those nowhere worse than the uncompensated command on every
+draw (max and mean, tip and orientation), and block by block: where the best ones hurt in a
+block, they fall back there (C2, to another candidate that does not hurt there, to
+tracking-error pre-compensation, or to the planned command), and the report says where and why.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -32,6 +41,8 @@ from scipy.ndimage import gaussian_filter1d
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..errors import PrecontourError
 from ..files import check_signals
+from .blocks import (ORIENTATION_WEIGHT, SUMMARY_KEYS, Fallback, block_starts, fall_back,
+                     TIE, best, judge, not_finite, splice_errors, whole_ok, worse_blocks)
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
@@ -70,22 +81,37 @@ LINE_SEARCH_STEPS: tuple[float, ...] = (0.5, 1.0)
 #: and learning still removed 89.0 % of the max tip error on `fan25` and 98.7 % on `paper`
 #: (linear pass 72.6 and 88.2 %).
 LIMITED_SMOOTHING = 0.003
-#: Weight of the orientation error against the tip error in the selection, mm/rad (about a
-#: tool length, as in the linear passes' score).
-ORIENTATION_WEIGHT = 100.0
+#: Candidates (the best by their worst draw among those that hurt somewhere block by block)
+#: that :func:`learn_at_stops` makes fall back locally, each at up to
+#: :data:`~.blocks.FALLBACK_ROUNDS` judgements on the machine model.
+REPAIRED_CANDIDATES = 3
+#: Other candidates (the best by their worst draw) a block may fall back to first, where one
+#: is nowhere worse there (:func:`~.blocks.fall_back`; choosing costs no machine run).
+ALTERNATIVES = 20
+#: What each learning update learns from where the machine model is an ensemble
+#: (:mod:`.blocks`): ``"mean"``, the mean actual motion over the draws, or ``"nominal"``,
+#: draw 0's alone.
+UPDATES: tuple[str, ...] = ("mean", "nominal")
 
-#: A nonlinear machine model: axis commands (N, 5) in, actual axis positions (N, 5) out.
+#: A nonlinear machine model: axis commands (N, 5) in, actual axis positions out, (N, 5) for
+#: one machine or (D, N, 5) for an ensemble of D draws of it
+#: (:func:`precontour.simulation.ensemble_actual`).
 MachineActual = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
 class LearningCandidate:
-    """One command tried on the machine model: its label and measured contour errors
-    (``ContourErrors.summary``: tip max/mean in um, orientation max/mean in mrad)."""
+    """One command tried on the machine model: its label, its contour errors on the worst
+    draw per key (``ContourErrors.summary``: tip max/mean in um, orientation max/mean in
+    mrad), whether it was admissible (nowhere worse in whole on every draw, within the limits
+    asked for, finite) and whether it was also nowhere worse block by block
+    (:func:`~.blocks.nowhere_worse`)."""
 
     label: str
     summary: dict
     accepted: bool
+    blocks_ok: bool = True
+    median: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -97,14 +123,25 @@ class LearningReport:
     chosen : str
         Label of the command kept: ``"uncompensated"``, ``"linear"`` (the linear passes'
         result), ``"pass n"`` (plain update) or ``"line-searched pass n (step s)"``, optionally
-        with ``", settled d ms"``.
+        with ``", settled d ms"``, and ``", fell back in n block(s)"`` where it gave way
+        locally (:attr:`fallback`).
     uncompensated, linear, kept : dict
         Contour errors on the machine model (``ContourErrors.summary``) of the reference
-        command, of the linear compensation, and of the command kept.
+        command, of the linear compensation, and of the command kept: per key the worst over
+        the draws.
     candidates : tuple of LearningCandidate
         Every command tried, in order.
     machine_runs : int
-        Calls of the machine model.
+        Machine runs (one per draw of each call of the machine model).
+    draws : int
+        Draws of the machine model (1: a single machine).
+    uncompensated_draws, kept_draws : tuple of dict
+        Per draw, the contour errors of the reference command and of the command kept.
+    fallback : Fallback or None
+        Where the command kept gave way block by block (:func:`~.blocks.fall_back`); None
+        when it did not.
+    fallback_runs : int
+        Of :attr:`machine_runs`, those spent judging local fallbacks.
     """
 
     chosen: str
@@ -113,6 +150,17 @@ class LearningReport:
     kept: dict
     candidates: tuple
     machine_runs: int
+    draws: int = 1
+    uncompensated_draws: tuple = ()
+    kept_draws: tuple = ()
+    fallback: Fallback | None = None
+    fallback_runs: int = 0
+
+    @property
+    def kept_median(self) -> dict:
+        """Per key, the median over the draws of the command kept."""
+        return {key: float(np.median([s[key] for s in self.kept_draws]))
+                for key in SUMMARY_KEYS}
 
 
 def final_rest_index(q: np.ndarray) -> int | None:
@@ -138,8 +186,19 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    settle_delays: tuple[float, ...] = SETTLE_DELAYS,
                    line_search_steps: tuple[float, ...] = LINE_SEARCH_STEPS,
                    smoothing: float = 0.0, admissible: Callable[[np.ndarray], bool] | None = None,
-                   progress=None) -> tuple[np.ndarray, LearningReport]:
+                   progress=None, line: np.ndarray | None = None,
+                   fallbacks: Sequence[tuple[str, np.ndarray]] = (), update: str = "mean",
+                   local: bool = True, t0: float = 0.0,
+                   tail_errors_of=None) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
+
+    Every decision (which step of a line search to continue from, which command to keep) is
+    taken on all the model's draws (:mod:`.blocks`): a command is admissible only if, on
+    every draw, its max and mean errors (tip and orientation) do not exceed the uncompensated
+    command's there, and the command kept is the admissible one whose worst draw is best.
+    With ``local``, the command kept is also nowhere worse block by block: where the best
+    admissible command is not, it falls back locally (:func:`~.blocks.fall_back`) and is kept
+    if it stays better than the best candidate that needed no fallback.
 
     Parameters
     ----------
@@ -148,16 +207,18 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     ts : float
         Sample period, s.
     machine_actual : callable
-        The machine model, commands (N, 5) -> actual axis positions (N, 5).
+        The machine model, commands (N, 5) -> actual axis positions (N, 5), or (D, N, 5) for
+        an ensemble of D draws.
     errors_of : callable
-        Actual axis positions -> ``ContourErrors`` against the reference.
+        Actual axis positions (N, 5) -> ``ContourErrors`` against the reference.
     contour_step : callable
         ``contour_step(q_cmd, q_act, actual)`` -> corrected commands: one contour correction
         (spec section 6) of ``q_cmd`` whose actual motion is ``q_act``, ``actual`` giving the
-        actual motion of any other command.
+        actual motion of any other command (both as ``update`` says for an ensemble).
     passes : int
-        Learning passes per sequence (a plain pass costs two machine runs plus one per
-        settling delay, a line-searched pass one more per step size tried beyond the first).
+        Learning passes per sequence (a plain pass costs two calls of the machine model plus
+        one per settling delay, a line-searched pass one more per step size tried beyond the
+        first).
     settle_delays : tuple of float
         Delays after the final stop (s) from which each iterate's tail is settled; none when
         the reference has no final dwell.
@@ -171,7 +232,24 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         ``admissible(q) -> bool``: commands it refuses (e.g. beyond the axis limits) are not
         kept; the uncompensated command is taken as admissible.
     progress : callable, optional
-        ``progress(label, summary)`` after each command tried.
+        ``progress(label, summary)`` after each command tried (the worst draw per key).
+    line : ndarray of shape (N,), optional
+        Source line of each sample: the blocks judged (:func:`~.blocks.block_starts`; without
+        it, windows of :data:`~.blocks.BLOCK_WINDOW`).
+    fallbacks : sequence of (str, ndarray)
+        Named commands to fall back to locally before the planned one, in order (e.g.
+        tracking-error pre-compensation).
+    update : {"mean", "nominal"}
+        What an update learns from when the model is an ensemble (:data:`UPDATES`).
+    local : bool
+        Whether the command kept must also be nowhere worse block by block.
+    t0 : float
+        Time of the first sample (for the fallback's report).
+    tail_errors_of : callable, optional
+        ``tail_errors_of(q_act_tail, first)``: the contour errors of the actual positions of
+        samples ``first`` on (identical to those samples of ``errors_of`` of the whole). With
+        it, a settled tail's errors are computed only from where its motion parts from its
+        iterate's.
 
     Returns
     -------
@@ -181,58 +259,103 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     """
     if passes < 0:
         raise ValueError(f"learning passes must be >= 0, got {passes}")
+    if update not in UPDATES:
+        raise ValueError(f"unknown learning update {update!r}; choose one of "
+                         f"{', '.join(UPDATES)}")
+    n = q_reference.shape[0]
+    starts = block_starts(n, ts, line)
     runs = 0
+    draws = 0
+
+    def run(q):
+        """The machine model's actual motions of ``q``, shape (D, N, 5), or None when ``q``
+        or a motion is not finite (a diverging update is simply not kept)."""
+        nonlocal runs, draws
+        if not np.all(np.isfinite(q)):
+            return None
+        motion = np.asarray(machine_actual(q), dtype=float)
+        if motion.ndim == 2:
+            motion = motion[None]
+        runs += motion.shape[0]
+        draws = motion.shape[0]
+        return motion if np.all(np.isfinite(motion)) else None
+
+    def learned_from(motion):
+        return motion.mean(axis=0) if update == "mean" else motion[0]
 
     def actual(q):
-        nonlocal runs
-        runs += 1
-        return machine_actual(q)
+        """The contour step's machine: one motion per command, as ``update`` says."""
+        motion = run(q)
+        return np.full(q.shape, np.nan) if motion is None else learned_from(motion)
+
+    def judge_command(q, like=None):
+        """The judgement of ``q``, its motions and their contour errors; ``like``: the motions
+        and errors of a command that ``q`` equals up to some sample (a settled tail), whose
+        errors are reused up to where the motions part (the machine is causal)."""
+        motion = run(q)
+        if motion is None:
+            return not_finite(max(draws, 1), starts.size), None, None
+        if like is None or like[0] is None or tail_errors_of is None \
+                or like[0].shape != motion.shape:
+            errors = [errors_of(m) for m in motion]
+        else:
+            parted = np.flatnonzero(np.any(motion != like[0], axis=(0, 2)))
+            if parted.size == 0:
+                errors = list(like[1])
+            else:
+                first = int(parted[0])
+                errors = [splice_errors(old, tail_errors_of(m[first:], first), first)
+                          for old, m in zip(like[1], motion)]
+        return judge(errors, starts), motion, errors
 
     rest = final_rest_index(q_reference)
     settle_starts = []
     if rest is not None:
         for delay in settle_delays:
             start = rest + int(round(delay / ts))
-            if start < q_reference.shape[0] - 1:
+            if start < n - 1:
                 settle_starts.append((delay, start))
 
     sigma = smoothing / ts
 
     def towards(q, q_new):
         """``q_new``, or with smoothing ``q`` plus the smoothed change to ``q_new``."""
-        if sigma <= 0:
+        if sigma <= 0 or not np.all(np.isfinite(q_new)):
             return q_new
         return q + gaussian_filter1d(q_new - q, sigma, axis=0, mode="nearest")
 
-    reference_errors = errors_of(actual(q_reference))
-    limit = reference_errors.summary()
-    candidates = []
+    reference, _, _ = judge_command(q_reference)
+    if not reference.finite:
+        raise ValueError("the machine model's motion of the uncompensated command is not "
+                         "finite")
+    entries = []    # (candidate, q, judgement)
 
-    def consider(label, q):
-        """Run ``q`` on the machine model and keep it as a candidate; None (and a candidate
-        never kept) when it diverged: a command or its motion that is not finite, or that
-        the machine model or the contour errors refuse (e.g. coordinates out of range)."""
+    def judged_safely(q, like=None):
+        """:func:`judge_command`, a command that diverged judged not finite: one that is not
+        finite, whose motion is not, or that the machine model or the contour errors refuse
+        (e.g. coordinates out of range)."""
         check_signals()  # between machine runs: where a SIGTERM or Ctrl-C stops learning
-        q_act = summary = None
-        if np.all(np.isfinite(q)):
-            try:
-                with np.errstate(all="ignore"):
-                    q_act = actual(q)
-                    if np.all(np.isfinite(q_act)):
-                        errors = errors_of(q_act)
-                        summary = errors.summary()
-            except PrecontourError:
-                q_act = None
-        if summary is None or not all(np.isfinite(v) for v in summary.values()):
-            candidates.append((LearningCandidate(label + " (diverged)", limit, False), q,
-                               np.inf))
-            return None
-        ok = (all(summary[key] <= limit[key] for key in limit)
+        try:
+            with np.errstate(all="ignore"):
+                return judge_command(q, like)
+        except PrecontourError:
+            return not_finite(max(draws, 1), starts.size), None, None
+
+    def consider(label, q, like=None):
+        """Judge and record ``q``; returns what an update learns from (None when it
+        diverged: such a candidate is never kept) and its motions and errors (for
+        :func:`consider_settled`)."""
+        judged, motion, errors = judged_safely(q, like)
+        if not judged.finite:
+            label += " (diverged)"
+        ok = (judged.finite and whole_ok(judged, reference)
               and (admissible is None or admissible(q)))
-        candidates.append((LearningCandidate(label, summary, ok), q, _max_score(errors)))
+        blocks_ok = ok and not worse_blocks(judged, reference).any()
+        entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok, judged.median),
+                        q, judged))
         if progress is not None:
-            progress(label, summary)
-        return q_act
+            progress(label, judged.worst)
+        return (None if motion is None else learned_from(motion)), (motion, errors)
 
     def step_from(q_cmd, q_act):
         """The next iterate, or None when the update diverged."""
@@ -243,58 +366,86 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             return None
         return q_new if np.all(np.isfinite(q_new)) else None
 
-    def consider_settled(label, q):
+    def consider_settled(label, q, like):
         for delay, start in settle_starts:
             consider(f"{label}, settled {1e3 * delay:.0f} ms",
-                     towards(q, settle_final_dwell(q, q_reference, start)))
+                     towards(q, settle_final_dwell(q, q_reference, start)), like)
 
-    candidates.append((LearningCandidate("uncompensated", limit, True), q_reference,
-                       _max_score(reference_errors)))
-    q_act_linear = consider("linear", q_linear)
-    consider_settled("linear", q_linear)
+    entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
+                                      reference.median), q_reference, reference))
+    q_act_linear, linear_state = consider("linear", q_linear)
+    consider_settled("linear", q_linear, linear_state)
     # The plain sequence: each pass applies the whole update. A sequence that diverges (an
     # iterate not finite, or refused by the machine model) ends there: what it tried before
     # stays a candidate, the diverged iterate is never kept.
     q_cmd, q_act = q_linear, q_act_linear
-    for n in range(1, passes + 1):
+    for k in range(1, passes + 1):
         q_cmd = None if q_act is None else step_from(q_cmd, q_act)
         if q_cmd is None:
             break
-        q_act = consider(f"pass {n}", q_cmd)
+        q_act, state = consider(f"pass {k}", q_cmd)
         if q_act is None:
             break
-        consider_settled(f"pass {n}", q_cmd)
-    # The line-searched sequence: each pass continues from the best step along the update.
+        consider_settled(f"pass {k}", q_cmd, state)
+    # The line-searched sequence: each pass continues from the best step along the update,
+    # best on its worst draw.
     if line_search_steps:
         q_cmd, q_act = q_linear, q_act_linear
-        for n in range(1, passes + 1):
+        for k in range(1, passes + 1):
             q_full = None if q_act is None else step_from(q_cmd, q_act)
             if q_full is None:
                 break
             tried = []
             for step in line_search_steps:
-                label = f"line-searched pass {n} (step {step:g})"
+                label = f"line-searched pass {k} (step {step:g})"
                 with np.errstate(all="ignore"):
                     q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
-                q_act_try = consider(label, q_try)
+                q_act_try, state = consider(label, q_try)
                 if q_act_try is not None:
-                    tried.append((candidates[-1][2], label, q_try, q_act_try))
+                    tried.append((entries[-1][2], label, q_try, q_act_try, state))
             if not tried:
                 break
-            _, label, q_cmd, q_act = min(tried, key=lambda entry: entry[0])
-            consider_settled(label, q_cmd)
-    linear = next(c for c, _, _ in candidates if c.label in ("linear", "linear (diverged)"))
-    chosen, q_kept, _ = min((entry for entry in candidates if entry[0].accepted),
-                            key=lambda entry: entry[2])
-    report = LearningReport(chosen=chosen.label, uncompensated=limit, linear=linear.summary,
-                            kept=chosen.summary,
-                            candidates=tuple(c for c, _, _ in candidates), machine_runs=runs)
+            _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
+            consider_settled(label, q_cmd, state)
+    linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
+    accepted = [entry for entry in entries if entry[0].accepted]
+    ranks = np.array([entry[2].score for entry in accepted])
+    kept = accepted[best([entry[2] for entry in accepted])]
+    fallback = None
+    fallback_runs = 0
+    if local and not kept[0].blocks_ok:
+        # The best candidates that hurt somewhere fall back there; the best of them is kept
+        # if it beats the best candidate that needed no fallback. Several are tried because
+        # where a fallback lands (a stop, the final dwell) decides what it costs.
+        safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
+        order = [i for i in np.argsort(ranks, kind="stable")
+                 if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok]
+        ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
+                  if accepted[i][1] is not q_reference]
+        repaired = []
+        runs_before = runs
+        for i in order[:REPAIRED_CANDIDATES]:
+            candidate, q_try, judged_try = accepted[i]
+            alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
+                            if q_alt is not q_try][:ALTERNATIVES]
+            q_fixed, judged, report_try = fall_back(
+                q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
+                starts, ts, alternatives=alternatives, fallbacks=fallbacks,
+                admissible=admissible, line=line, t0=t0)
+            if not report_try.everywhere:
+                label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
+                repaired.append(((LearningCandidate(label, judged.worst, True, True,
+                                                    judged.median), q_fixed, judged),
+                                 report_try))
+        pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
+        kept = pool[best([entry[2] for entry in pool])]
+        fallback = next((f for e, f in repaired if e is kept), None)
+        fallback_runs = runs - runs_before
+    chosen, q_kept, judged = kept
+    report = LearningReport(chosen=chosen.label, uncompensated=reference.worst,
+                            linear=linear.summary, kept=chosen.summary,
+                            candidates=tuple(c for c, _, _ in entries), machine_runs=runs,
+                            draws=reference.draws, uncompensated_draws=reference.summaries,
+                            kept_draws=judged.summaries, fallback=fallback,
+                            fallback_runs=fallback_runs)
     return q_kept, report
-
-
-def _max_score(errors) -> float:
-    """The largest errors, tip (mm) plus orientation weighted by ORIENTATION_WEIGHT; the mean
-    errors break ties only (the linear passes already make them small)."""
-    return (float(errors.tip.max()) + ORIENTATION_WEIGHT * float(errors.orientation.max())
-            + 1e-3 * (float(errors.tip.mean())
-                      + ORIENTATION_WEIGHT * float(errors.orientation.mean())))

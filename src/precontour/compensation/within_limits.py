@@ -30,6 +30,7 @@ from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
 from ..trajectory.retime import Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
+from .blend import TAPER_HOLD, TAPER_WIDTH, taper_corrections
 from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
 from .precompensate import (CompensationResult, axis_tolerances, compensate,
@@ -212,19 +213,27 @@ def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models
 
 def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
                         machine_actual: MachineActual, passes: int, *,
-                        progress=None) -> LimitedCompensation:
+                        progress=None, **learning) -> LimitedCompensation:
     """``limited`` improved by ``passes`` passes of learning against the nonlinear machine
     model ``machine_actual`` (:func:`~.stops.learn_at_stops`, from its commands on its
-    reference), keeping only commands within ``limits``: each learning update and each
-    settling is smoothed (:data:`~.stops.LIMITED_SMOOTHING`) and a command beyond a limit is
-    not kept; nowhere worse than the uncompensated command on that model, as there.
-    ``result.learning`` reports what was tried and kept."""
+    reference; one machine, or better an ensemble of draws of it,
+    :func:`precontour.simulation.ensemble_actual`), keeping only commands within ``limits``:
+    each learning update and each settling is smoothed (:data:`~.stops.LIMITED_SMOOTHING`)
+    and a command beyond a limit is not kept; nowhere worse than the uncompensated command on
+    every draw, in whole and block by block (each source line of ``limited.line``, else
+    windows), falling back locally to axis tracking-error pre-compensation or the planned
+    command where needed (:mod:`.blocks`). ``learning``: further options of
+    :func:`~.stops.learn_at_stops` (``update``, ``local``). ``result.learning`` reports what
+    was tried and kept."""
     reference = limited.reference
     ts, t0 = reference.ts, float(reference.t[0])
     path = ReferencePath.from_trajectory(reference)
 
     def errors_of(q_actual):
         return contour_errors(path, q_actual, kinematics)
+
+    def tail_errors_of(q_actual, first):
+        return contour_errors(path, q_actual, kinematics, t=path.t[first:])
 
     def within_limits(q):
         return check_limits(q, ts, limits, t0=t0).ok
@@ -235,54 +244,20 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)
 
+    tracking = hold(reference.q + _predicted(reference, models, {}).e)
     q, report = learn_at_stops(reference.q, q_start, ts, machine_actual, errors_of,
                                learning_step(reference, path, kinematics, hold=hold),
                                passes=passes,
                                smoothing=LIMITED_SMOOTHING, admissible=within_limits,
-                               progress=progress)
+                               progress=progress, line=limited.line,
+                               fallbacks=(("tracking-error pre-compensation", tracking),),
+                               t0=t0, tail_errors_of=tail_errors_of, **learning)
     result = replace(limited.result, learning=report)
     if q is not q_start:
         after = errors_of(predicted_actual(reference.t, q, models))
         result = replace(result, trajectory=reference.with_axes(q), after=after,
                          iterations=0 if report.chosen == "uncompensated" else result.iterations)
     return replace(limited, result=result, check=check_limits(q, ts, limits, t0=t0))
-
-
-#: Half-width (s) around a sample over a limit where the correction is left out entirely, and
-#: width (s) of the C2 taper on each side.
-TAPER_HOLD = 0.05
-TAPER_WIDTH = 0.1
-
-
-def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np.ndarray,
-                      ts: float) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """Commands whose correction ``q_compensated - q_planned`` is left out around the samples
-    ``over`` (within :data:`TAPER_HOLD`) and tapered in and out over :data:`TAPER_WIDTH`.
-
-    The weight is the indicator of the widened windows smoothed by four moving averages (a
-    cubic B-spline kernel: C2, so the taper adds bounded jerk, of the order of the correction
-    over ``TAPER_WIDTH`` cubed); it is exactly 0 on the samples over a limit. Returns the
-    commands and the left-out windows as sample index pairs.
-    """
-    n = over.size
-    hold = int(round(TAPER_HOLD / ts))
-    box = max(1, int(round(TAPER_WIDTH / ts / 4)))
-    # widen by the hold and by the kernel's half-support, so that the weight is 0 on ``over``
-    widen = hold + 2 * box
-    index = np.flatnonzero(over)
-    marks = np.zeros(n + 1)
-    np.add.at(marks, np.clip(index - widen, 0, n), 1.0)
-    np.add.at(marks, np.clip(index + widen + 1, 0, n), -1.0)
-    cut = np.cumsum(marks[:n]) > 0
-    weight = cut.astype(float)
-    kernel = np.ones(box) / box
-    for _ in range(4):
-        weight = np.convolve(np.pad(weight, (box, box), mode="edge"), kernel, mode="same")[box:-box]
-    weight = np.clip(weight, 0.0, 1.0)
-    weight[over] = 1.0
-    q = q_compensated - weight[:, None] * (q_compensated - q_planned)
-    edges = np.flatnonzero(np.diff(np.r_[0, cut.astype(np.int8), 0]))
-    return q, list(zip(edges[::2], edges[1::2] - 1))
 
 
 #: The splice margins (spec section 6 compensation is local in time):

@@ -40,7 +40,7 @@ from ..machine.machine_file import Machine
 from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
 
 __all__ = ["REALISTIC", "realistic_actual", "LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES", "SimulationResult",
-           "StackedFriction", "simulate", "simulate_trajectory"]
+           "StackedFriction", "simulate", "simulate_draws", "simulate_trajectory"]
 
 MODES: tuple[str, ...] = ("discrete", "continuous")
 
@@ -153,6 +153,19 @@ class StackedFriction:
         self.branches = np.column_stack([p[:, 0], -1.0 / p[:, 1], p[:, 2], -1.0 / p[:, 3],
                                          p[:, 4], -1.0 / p[:, 5], p[:, 6], -1.0 / p[:, 7]])
 
+    def scaled(self, static, coulomb) -> "StackedFriction":
+        """The same friction with its static (Ts) and Coulomb (Tc) torques, both sides,
+        multiplied per axis by ``static`` and ``coulomb`` (scalars or shape (5,)): a true
+        machine whose friction differs from the model the feed-forward uses."""
+        out = object.__new__(StackedFriction)
+        branches = self.branches.copy()
+        for column, factor in ((0, static), (4, static), (2, coulomb), (6, coulomb)):
+            branches[:, column] = branches[:, column] * factor
+        out.branches = branches
+        out.ts_pos = branches[:, 0].copy()
+        out.ts_neg = branches[:, 4].copy()
+        return out
+
     def many(self, w: np.ndarray) -> np.ndarray:
         """Friction torques Tf(w), N m, for motor speeds of shape (..., 5) in rad/s."""
         w = np.asarray(w, dtype=float)
@@ -176,8 +189,8 @@ class _Plant:
     kakt: np.ndarray
 
     @classmethod
-    def from_drives(cls, drives: tuple[Drive, ...], inertia_scale: float,
-                    damping_scale: float) -> "_Plant":
+    def from_drives(cls, drives: tuple[Drive, ...], inertia_scale,
+                    damping_scale) -> "_Plant":
         return cls(J=np.array([d.J for d in drives]) * inertia_scale,
                    B=np.array([d.B for d in drives]) * damping_scale,
                    rg=np.array([d.rg for d in drives]),
@@ -188,8 +201,9 @@ class _Plant:
 # --------------------------------------------------------------------------------------------
 
 def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str = "discrete",
-             friction: bool = True, ff_friction: bool = True, inertia_scale: float = 1.0,
-             damping_scale: float = 1.0, encoder_resolution=None,
+             friction: bool = True, ff_friction: bool = True, inertia_scale=1.0,
+             damping_scale=1.0, friction_scale=1.0, encoder_resolution=None,
+             encoder_offset=None, encoder_noise=None,
              substeps: int | None = None) -> SimulationResult:
     """Simulate the five drives of ``machine`` following the axis commands ``q``.
 
@@ -221,12 +235,22 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
         the command velocity over [t_k, t_k+1) is (q[k+1] - q[k]) / Ts, held like u; in
         continuous mode it is the interpolant's derivative. Commanded speeds below
         :data:`FF_SPEED_DEADBAND` count as zero.
-    inertia_scale, damping_scale : float
-        Factors on the true plant's J and B (a mis-identified machine); the controller and the
-        feed-forward stay nominal.
+    inertia_scale, damping_scale : float or array_like of shape (5,)
+        Factors on the true plant's J and B (a mis-identified machine), for all axes or per
+        axis; the controller and the feed-forward stay nominal.
+    friction_scale : float, array_like of shape (5,) or (2, 5)
+        Factors on the true plant's static (Ts) and Coulomb (Tc) friction torques, both signs
+        of the speed: one for all, one per axis, or per axis a row for Ts and one for Tc. The
+        feed-forward keeps the machine file's friction (a machine whose friction scatters).
     encoder_resolution : float or array_like of shape (5,), optional
         Encoder grid per axis (mm or rad); the controller reads round(x / res) * res.
         Discrete mode only.
+    encoder_offset : float or array_like of shape (5,), optional
+        Origin of that grid per axis (mm or rad): the controller reads
+        round((x - o) / res) * res + o. Discrete mode, with ``encoder_resolution`` only.
+    encoder_noise : array_like of shape (N, 5), optional
+        Noise added to each position reading (mm or rad) before quantisation. Discrete mode
+        only.
     substeps : int, optional
         Integration sub-steps per sample period (default :data:`DEFAULT_SUBSTEPS`). Discrete
         mode: exponential ETD2 steps of the speed ODE (exact without friction, where one step
@@ -249,6 +273,49 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
     starts and the feed-forward torque jumps inside RK4 stages), so use discrete mode for
     friction studies.
     """
+    job = _prepare(t, q, machine, controller, mode=mode, friction=friction,
+                   ff_friction=ff_friction, inertia_scale=inertia_scale,
+                   damping_scale=damping_scale, friction_scale=friction_scale,
+                   encoder_resolution=encoder_resolution, encoder_offset=encoder_offset,
+                   encoder_noise=encoder_noise, substeps=substeps)
+    if job.run_axis is not None:
+        _map_axes([lambda i=i: job.run_axis(i) for i in range(_N_AXES)])
+    return job.result()
+
+
+def simulate_draws(t, q, machine: Machine, controller: Controller | str,
+                   draws, **common) -> np.ndarray:
+    """Actual axis positions of the commands ``q`` on several variants of the machine at once.
+
+    ``draws`` is a sequence of option dicts of :func:`simulate` (e.g. ``friction_scale``,
+    ``inertia_scale``, ``encoder_noise``), each completed by ``common``. The runs are
+    independent time loops: their per-axis compiled kernels (which release the GIL) share
+    one pool of up to two threads, so five draws cost about five single runs on one core,
+    half that on two. Returns ``q_act`` of each draw, shape (D, N, 5).
+    """
+    jobs = [_prepare(t, q, machine, controller, **{**common, **draw}) for draw in draws]
+    tasks = [lambda job=job, i=i: job.run_axis(i)
+             for job in jobs if job.run_axis is not None for i in range(_N_AXES)]
+    _map_axes(tasks)
+    n = np.asarray(t).size
+    return (np.stack([job.result().q_act for job in jobs]) if jobs
+            else np.empty((0, n, _N_AXES)))
+
+
+@dataclass
+class _Job:
+    """One prepared simulation: ``run_axis(i)`` fills axis i of the outputs (None when the
+    outputs are already complete), ``result()`` wraps them."""
+
+    run_axis: object
+    result: object
+
+
+def _prepare(t, q, machine: Machine, controller: Controller | str, *, mode: str = "discrete",
+             friction: bool = True, ff_friction: bool = True, inertia_scale=1.0,
+             damping_scale=1.0, friction_scale=1.0, encoder_resolution=None,
+             encoder_offset=None, encoder_noise=None, substeps: int | None = None) -> _Job:
+    """The input checks and set-up of :func:`simulate`, its time loops left to run."""
     if isinstance(controller, str):
         controller = machine.controller(controller)
     if mode not in MODES:
@@ -266,7 +333,11 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
                          "period)", field="t")
     inertia_scale = _check_scale(inertia_scale, "inertia_scale", positive=True)
     damping_scale = _check_scale(damping_scale, "damping_scale", positive=False)
+    friction_scale = _check_scale(friction_scale, "friction_scale", positive=False,
+                                  rows=2)
     resolution = _check_resolution(encoder_resolution, mode)
+    offset = _check_offset(encoder_offset, resolution)
+    noise = _check_noise(encoder_noise, t.size, mode)
     if substeps is None:
         substeps = DEFAULT_SUBSTEPS[mode]
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
@@ -275,10 +346,19 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
 
     plant = _Plant.from_drives(machine.drives, inertia_scale, damping_scale)
     nominal_friction = StackedFriction(machine.drives)
+    friction_rows = np.broadcast_to(friction_scale, (2, _N_AXES))
+    true_friction = (nominal_friction if np.all(friction_rows == 1.0)
+                     else nominal_friction.scaled(friction_rows[0], friction_rows[1]))
     settings = dict(friction=bool(friction), ff_friction=bool(ff_friction),
                     inertia_scale=inertia_scale, damping_scale=damping_scale,
                     encoder_resolution=None if resolution is None else resolution.copy(),
                     substeps=substeps, sample_period=ts)
+    if not np.all(friction_rows == 1.0):
+        settings.update(friction_scale=friction_scale)
+    if offset is not None:
+        settings.update(encoder_offset=offset.copy())
+    if noise is not None:
+        settings.update(encoder_noise_rms=np.sqrt(np.mean(noise ** 2, axis=0)))
 
     if controller.type in CLOSED_LOOP_TYPES:
         # The whole loop is given as x/X (closed_loop.py): no plant, friction or control law.
@@ -286,8 +366,9 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
         rg = np.array([d.rg for d in machine.drives])
         w = np.gradient(q_act, ts, axis=0) / rg
         settings.update(closed_loop_model=True)
-        return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=np.full_like(q, np.nan), w=w,
+        done = SimulationResult(t=t, q_cmd=q, q_act=q_act, u=np.full_like(q, np.nan), w=w,
                                 mode=mode, controller=controller.name, settings=settings)
+        return _Job(run_axis=None, result=lambda: done)
 
     packer = LAWS.get(controller.type)
     if packer is None:
@@ -296,13 +377,17 @@ def simulate(t, q, machine: Machine, controller: Controller | str, *, mode: str 
             f"{controller.type!r} (supported: {', '.join(LAWS)})")
     law = packer(controller, machine.drives)
     if mode == "discrete":
-        q_act, w, u = _run_discrete(q, ts, plant, law, nominal_friction, bool(friction),
-                                    bool(ff_friction), resolution, substeps)
+        run_axis, (q_act, w, u) = _discrete_job(q, ts, plant, law, true_friction,
+                                                nominal_friction, bool(friction),
+                                                bool(ff_friction), resolution, offset, noise,
+                                                substeps)
     else:
-        q_act, w, u = _run_continuous(t, q, plant, law, nominal_friction, bool(friction),
-                                      bool(ff_friction), substeps)
-    return SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
-                            controller=controller.name, settings=settings)
+        run_axis, (q_act, w, u) = _continuous_job(t, q, plant, law, true_friction,
+                                                  nominal_friction, bool(friction),
+                                                  bool(ff_friction), substeps)
+    return _Job(run_axis=run_axis,
+                result=lambda: SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
+                                                controller=controller.name, settings=settings))
 
 
 def realistic_actual(t: np.ndarray, machine: Machine, controller: Controller | str):
@@ -336,14 +421,53 @@ def _check_commands(q, n: int) -> np.ndarray:
     return q
 
 
-def _check_scale(value, name: str, *, positive: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+def _check_scale(value, name: str, *, positive: bool, rows: int = 1):
+    """A factor for all axes (returned as a float), or one per axis (shape (5,)), or with
+    ``rows`` > 1 also ``rows`` of them per axis (shape (rows, 5))."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer,
+                                                         list, tuple, np.ndarray)):
         raise InputError(f"must be a number, got {plain(value)!r}", field=name)
-    value = float(value)
-    ok = math.isfinite(value) and (value > 0 if positive else value >= 0)
-    if not ok:
-        raise InputError(f"must be finite and {'> 0' if positive else '>= 0'}, got {plain(value)!r}",
+    array = np.asarray(value, dtype=float)
+    shapes = [(), (_N_AXES,)] + ([(rows, _N_AXES)] if rows > 1 else [])
+    if array.shape not in shapes:
+        allowed = " or ".join(str(shape) for shape in shapes[1:])
+        raise InputError(f"must be a number or have shape {allowed}, got shape {array.shape}",
                          field=name)
+    ok = np.isfinite(array) & (array > 0 if positive else array >= 0)
+    if not ok.all():
+        bad = array.flat[int(np.flatnonzero(~ok.ravel())[0])]
+        where = "" if array.ndim == 0 else f"axis {AXES[int(np.flatnonzero(~ok.ravel())[0]) % _N_AXES]}: "
+        raise InputError(f"{where}must be finite and {'> 0' if positive else '>= 0'}, "
+                         f"got {plain(float(bad))!r}", field=name)
+    return float(array) if array.ndim == 0 else array.copy()
+
+
+def _check_offset(offset, resolution) -> np.ndarray | None:
+    if offset is None:
+        return None
+    if resolution is None:
+        raise InputError("an encoder offset needs encoder_resolution (it shifts the grid)",
+                         field="encoder_offset")
+    value = np.broadcast_to(np.asarray(offset, dtype=float), (_N_AXES,)) \
+        if np.ndim(offset) == 0 else np.asarray(offset, dtype=float)
+    if value.shape != (_N_AXES,) or not np.all(np.isfinite(value)):
+        raise InputError(f"must be a finite number or have shape (5,), got {plain(offset)!r}",
+                         field="encoder_offset")
+    return np.array(value, dtype=float)
+
+
+def _check_noise(noise, n: int, mode: str) -> np.ndarray | None:
+    if noise is None:
+        return None
+    if mode != "discrete":
+        raise InputError("encoder noise needs mode='discrete' (the continuous law has no "
+                         "sampling instants)", field="encoder_noise")
+    value = np.asarray(noise, dtype=float)
+    if value.shape != (n, _N_AXES):
+        raise InputError(f"must have shape (N, 5) = ({n}, 5), got {value.shape}",
+                         field="encoder_noise")
+    if not np.all(np.isfinite(value)):
+        raise InputError("must be finite", field="encoder_noise")
     return value
 
 
@@ -370,15 +494,16 @@ def _check_resolution(resolution, mode: str) -> np.ndarray | None:
 # Integrators: compiled, one axis per call (the five axes are independent)
 # --------------------------------------------------------------------------------------------
 
-def _map_axes(run_axis) -> None:
-    """``run_axis(i)`` for the five axes, on up to two threads (the kernels release the GIL)."""
-    workers = min(_N_AXES, os.cpu_count() or 1, 2)
-    if workers == 1:
-        for i in range(_N_AXES):
-            run_axis(i)
+def _map_axes(tasks) -> None:
+    """Each of ``tasks`` (compiled per-axis time loops, which release the GIL) on up to two
+    threads."""
+    workers = min(len(tasks), os.cpu_count() or 1, 2)
+    if workers <= 1:
+        for task in tasks:
+            task()
         return
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for future in [pool.submit(run_axis, i) for i in range(_N_AXES)]:
+        for future in [pool.submit(task) for task in tasks]:
             future.result()
 
 
@@ -439,8 +564,8 @@ def _feedforward_torque(fr, w_cmd):
 
 
 @_jit
-def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, friction, ff, res, substeps,
-                   q_act, w_out, u_out):
+def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, fr_ff, friction, ff, res, origin,
+                   noise, substeps, q_act, w_out, u_out):
     """One axis: discrete control law + zero-order hold + exponential plant integration.
 
     Over one servo period the applied torque tau = kt ka u_k + Tff_k is constant, so the axis
@@ -449,7 +574,9 @@ def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, friction, ff, res, subste
     period is integrated with ETD2 sub-steps on the current friction branch; a period in which
     the speed leaves its branch is redone by :func:`_discrete_period_events`, which locates
     the crossing within its sub-step and either sticks the axis or continues on the other
-    branch.
+    branch. ``fr`` is the plant's friction, ``fr_ff`` the model the feed-forward uses; the
+    encoder reads x + ``noise[k]`` (none when ``noise`` is empty) on the grid ``res`` (0: none)
+    whose origin is ``origin``.
     """
     n = q.shape[0]
     state = np.zeros(N_DISCRETE_STATES)
@@ -465,7 +592,9 @@ def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, friction, ff, res, subste
     for k in range(n):
         q_act[k] = x
         w_out[k] = w
-        y = x if res == 0.0 else np.rint(x / res) * res
+        y = x if noise.shape[0] == 0 else x + noise[k]
+        if res != 0.0:
+            y = np.rint((y - origin) / res) * res + origin
         u = discrete_step(kind, p, state, k, q[k] - y, y, q, ts)
         u_out[k] = u
         if k == n - 1:
@@ -473,7 +602,7 @@ def _discrete_axis(q, ts, kind, p, J, B, rg, kakt, fr, friction, ff, res, subste
         tau = kakt * u
         if ff:
             # Mean commanded speed over the hold interval [t_k, t_k+1).
-            tau = tau + _feedforward_torque(fr, (q[k + 1] - q[k]) / ts / rg)
+            tau = tau + _feedforward_torque(fr_ff, (q[k + 1] - q[k]) / ts / rg)
         if not friction:
             n0 = tau * inv_j
             x = x + Q0 * w + Q1 * n0
@@ -590,8 +719,8 @@ def _continuous_rhs(kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w
 
 
 @_jit
-def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction, ff, substeps,
-                     q_act, w_out, u_out):
+def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, fr_ff, friction, ff,
+                     substeps, q_act, w_out, u_out):
     """One axis: continuous control law, command from a quintic interpolant, RK4 sub-steps.
 
     Stage times are t_k + j h / 2 (j = 0 .. 2 m, h = Ts / m); the command and its first two
@@ -621,7 +750,7 @@ def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction,
         w_out[k] = w
         l = _taylor_coefficients(knots, coefs, t[k], l, work, taylor)
         X1, Xd1, Xdd1 = taylor[0], taylor[1], 2.0 * taylor[2]
-        tff1 = _feedforward_torque(fr, Xd1 / rg) if ff else 0.0
+        tff1 = _feedforward_torque(fr_ff, Xd1 / rg) if ff else 0.0
         for j in range(m if k < n - 1 else 1):
             dx1, dw1, ds1a, ds1b, ds1c, u1, tau1 = _continuous_rhs(
                 kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x, w, s0, s1, s2,
@@ -640,8 +769,8 @@ def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction,
             X2, Xd2, Xdd2 = _command_at(taylor, t[0] + h2 * (i + 1) - t[k])
             X3, Xd3, Xdd3 = _command_at(taylor, (t[k + 1] if j == m - 1
                                                  else t[0] + h2 * (i + 2)) - t[k])
-            tff2 = _feedforward_torque(fr, Xd2 / rg) if ff else 0.0
-            tff3 = _feedforward_torque(fr, Xd3 / rg) if ff else 0.0
+            tff2 = _feedforward_torque(fr_ff, Xd2 / rg) if ff else 0.0
+            tff3 = _feedforward_torque(fr_ff, Xd3 / rg) if ff else 0.0
             dx2, dw2, ds2a, ds2b, ds2c, _, _ = _continuous_rhs(
                 kind, p, J, B, rg, kakt, fr, friction, positive, stuck, x + h2 * dx1,
                 w + h2 * dw1, s0 + h2 * ds1a, s1 + h2 * ds1b, s2 + h2 * ds1c, X2, Xd2, Xdd2,
@@ -676,23 +805,27 @@ def _continuous_axis(t, q0, knots, coefs, kind, p, J, B, rg, kakt, fr, friction,
             X1, Xd1, Xdd1, tff1 = X3, Xd3, Xdd3, tff3
 
 
-def _run_discrete(q, ts, plant: _Plant, law: LawParameters, friction: StackedFriction,
-                  use_friction: bool, use_ff: bool, resolution, substeps):
+def _discrete_job(q, ts, plant: _Plant, law: LawParameters, friction: StackedFriction,
+                  feedforward: StackedFriction, use_friction: bool, use_ff: bool, resolution,
+                  offset, noise, substeps):
     n = q.shape[0]
     q_act, w_out, u_out = (np.empty((n, _N_AXES)) for _ in range(3))
     res = np.zeros(_N_AXES) if resolution is None else resolution
+    origin = np.zeros(_N_AXES) if offset is None else offset
+    reading_noise = np.zeros((0, _N_AXES)) if noise is None else noise
 
     def run_axis(i):
         _discrete_axis(q[:, i], ts, law.kind, law.params[i], plant.J[i], plant.B[i],
-                       plant.rg[i], plant.kakt[i], friction.branches[i], use_friction,
-                       use_ff, res[i], substeps, q_act[:, i], w_out[:, i], u_out[:, i])
+                       plant.rg[i], plant.kakt[i], friction.branches[i],
+                       feedforward.branches[i], use_friction, use_ff, res[i], origin[i],
+                       np.ascontiguousarray(reading_noise[:, i]), substeps, q_act[:, i],
+                       w_out[:, i], u_out[:, i])
 
-    _map_axes(run_axis)
-    return q_act, w_out, u_out
+    return run_axis, (q_act, w_out, u_out)
 
 
-def _run_continuous(t, q, plant: _Plant, law: LawParameters, friction: StackedFriction,
-                    use_friction: bool, use_ff: bool, substeps):
+def _continuous_job(t, q, plant: _Plant, law: LawParameters, friction: StackedFriction,
+                    feedforward: StackedFriction, use_friction: bool, use_ff: bool, substeps):
     n = q.shape[0]
     q_act, w_out, u_out = (np.empty((n, _N_AXES)) for _ in range(3))
 
@@ -708,8 +841,7 @@ def _run_continuous(t, q, plant: _Plant, law: LawParameters, friction: StackedFr
             coefs[j, :n_coefs - j] = d.c[:n_coefs - j, i]
         _continuous_axis(t, q[0, i], spline.t, coefs, law.kind, law.params[i], plant.J[i],
                          plant.B[i], plant.rg[i], plant.kakt[i], friction.branches[i],
-                         use_friction, use_ff, substeps, q_act[:, i], w_out[:, i],
-                         u_out[:, i])
+                         feedforward.branches[i], use_friction, use_ff, substeps,
+                         q_act[:, i], w_out[:, i], u_out[:, i])
 
-    _map_axes(run_axis)
-    return q_act, w_out, u_out
+    return run_axis, (q_act, w_out, u_out)

@@ -1,0 +1,49 @@
+"""C2 blends between two commands: one command's correction left out locally and tapered.
+
+Used where the compensated commands must give way locally, to the planned commands where they
+break a limit that slowing down cannot cure (:mod:`.within_limits`), to axis tracking-error
+pre-compensation at kinks of the corrections, and to a command that does not hurt where a
+block's error on the machine would exceed the uncompensated one's (:mod:`.blocks`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Half-width (s) around a sample over a limit where the correction is left out entirely, and
+#: width (s) of the C2 taper on each side.
+TAPER_HOLD = 0.05
+TAPER_WIDTH = 0.1
+
+
+def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np.ndarray,
+                      ts: float, hold: float = TAPER_HOLD
+                      ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Commands whose correction ``q_compensated - q_planned`` is left out around the samples
+    ``over`` (within ``hold``, s; :data:`TAPER_HOLD`) and tapered in and out over
+    :data:`TAPER_WIDTH`.
+
+    The weight is the indicator of the widened windows smoothed by four moving averages (a
+    cubic B-spline kernel: C2, so the taper adds bounded jerk, of the order of the correction
+    over ``TAPER_WIDTH`` cubed); it is exactly 0 on the samples over a limit. Returns the
+    commands and the left-out windows as sample index pairs.
+    """
+    n = over.size
+    hold = int(round(hold / ts))
+    box = max(1, int(round(TAPER_WIDTH / ts / 4)))
+    # widen by the hold and by the kernel's half-support, so that the weight is 0 on ``over``
+    widen = hold + 2 * box
+    index = np.flatnonzero(over)
+    marks = np.zeros(n + 1)
+    np.add.at(marks, np.clip(index - widen, 0, n), 1.0)
+    np.add.at(marks, np.clip(index + widen + 1, 0, n), -1.0)
+    cut = np.cumsum(marks[:n]) > 0
+    weight = cut.astype(float)
+    kernel = np.ones(box) / box
+    for _ in range(4):
+        weight = np.convolve(np.pad(weight, (box, box), mode="edge"), kernel, mode="same")[box:-box]
+    weight = np.clip(weight, 0.0, 1.0)
+    weight[over] = 1.0
+    q = q_compensated - weight[:, None] * (q_compensated - q_planned)
+    edges = np.flatnonzero(np.diff(np.r_[0, cut.astype(np.int8), 0]))
+    return q, list(zip(edges[::2], edges[1::2] - 1))

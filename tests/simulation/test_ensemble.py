@@ -1,0 +1,73 @@
+"""The ensemble of virtual machines: its options object, its draws, and the model that runs
+them side by side."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from precontour.machine.machine_file import load_machine
+from precontour.simulation.ensemble import MachineEnsemble, ensemble_actual
+from precontour.simulation.virtual_machine import REALISTIC, simulate
+
+MACHINE = load_machine("zhang2013")
+
+
+def test_the_options_are_checked():
+    for bad, message in ((dict(draws=0), "draws must be an integer >= 1"),
+                         (dict(draws=2.5), "draws must be an integer >= 1"),
+                         (dict(friction_spread=1.0), r"friction_spread must be within \[0, 1\)"),
+                         (dict(inertia_spread=-0.1), r"inertia_spread must be within \[0, 1\)"),
+                         (dict(damping_spread=float("nan")), "damping_spread must be within"),
+                         (dict(encoder_resolution=(1e-5,)), "encoder_resolution must be two"),
+                         (dict(encoder_noise=(1e-6, -1.0)), "encoder_noise must be two"),
+                         (dict(seed=-1), "seed must be an integer >= 0")):
+        with pytest.raises(ValueError, match=message):
+            MachineEnsemble(**bad)
+    with pytest.raises(ValueError, match="for both kinds of axis or for neither"):
+        MachineEnsemble(encoder_resolution=(1e-5, 0.0)).options(10)
+
+
+def test_draws_are_deterministic_within_their_spreads_and_draw_0_is_the_machine():
+    ensemble = MachineEnsemble(draws=6, seed=7)
+    options = ensemble.options(50)
+    assert len(options) == 6 and options[0] == {}
+    again = MachineEnsemble(draws=6, seed=7).options(50)
+    fewer = MachineEnsemble(draws=3, seed=7).options(50)
+    other = MachineEnsemble(draws=6, seed=8).options(50)
+    for d in range(1, 6):
+        for key, value in options[d].items():
+            np.testing.assert_array_equal(value, again[d][key])
+            if d < 3:           # a draw does not depend on how many are drawn
+                np.testing.assert_array_equal(value, fewer[d][key])
+        assert not np.array_equal(options[d]["friction_scale"], other[d]["friction_scale"])
+        assert options[d]["friction_scale"].shape == (2, 5)
+        assert np.all(np.abs(options[d]["friction_scale"] - 1) <= 0.02)
+        assert np.all(np.abs(options[d]["inertia_scale"] - 1) <= 0.01)
+        assert np.all(np.abs(options[d]["damping_scale"] - 1) <= 0.01)
+        res = options[d]["encoder_resolution"]
+        np.testing.assert_array_equal(res, [1e-5] * 3 + [1e-7] * 2)
+        assert np.all((options[d]["encoder_offset"] >= 0) & (options[d]["encoder_offset"] < res))
+        noise = options[d]["encoder_noise"]
+        assert noise.shape == (50, 5)
+        assert np.all(np.abs(noise[:, :3]).max(axis=0) < 6 * 2e-6)
+    assert MachineEnsemble(nominal=False).options(5)[0] != {}
+    plain = MachineEnsemble(encoder_resolution=(0, 0), encoder_noise=(0, 0)).options(5)[1]
+    assert "encoder_resolution" not in plain and "encoder_noise" not in plain
+    assert "friction +-2 %" in ensemble.describe() and "seed 7" in ensemble.describe()
+
+
+def test_the_ensemble_model_runs_every_draw():
+    t = np.arange(300) * MACHINE.servo_period
+    s = np.clip(t / 0.25, 0, 1)
+    q = np.outer(s * s * (3 - 2 * s), [5.0, -3.0, 1.0, 0.2, -0.3])
+    ensemble = MachineEnsemble(draws=3, seed=2)
+    actual = ensemble_actual(t, MACHINE, "pid-high", ensemble)
+    motions = actual(q)
+    assert motions.shape == (3, 300, 5)
+    np.testing.assert_array_equal(motions[0],
+                                  simulate(t, q, MACHINE, "pid-high", **REALISTIC).q_act)
+    draw_2 = ensemble.options(300)[2]
+    np.testing.assert_array_equal(motions[2], simulate(t, q, MACHINE, "pid-high", **REALISTIC,
+                                                       **draw_2).q_act)
+    assert not np.array_equal(motions[1], motions[2])
