@@ -202,6 +202,32 @@ def test_compensate_keeps_the_limits_so_export_takes_its_output(tmp_path, capsys
         assert ("exceed the machine's limits" in printed.err) == (not keeps)
 
 
+def test_compensate_min_speed_floors_the_slowing(tmp_path, capsys):
+    """--min-speed: circle / pid-high slows to 77 % of its speed unfloored (measured); at 0.97
+    it is slowed no further, says where the compensation was left out instead, and the
+    commands still keep the jerk limit. A floor outside (0, 1] is refused in one line."""
+    from precontour import load_machine
+    from precontour.tables import read_trajectory
+
+    circle = tmp_path / "circle.csv"
+    assert main(["trajectory", "--builtin", "circle", "-o", str(circle)]) == 0
+    j_max = np.array([d.j_max for d in load_machine("zhang2013").drives])
+    out = tmp_path / "comp.csv"
+    assert main(["compensate", str(circle), "--controller", "pid-high", "--learn", "0",
+                 "--min-speed", "0.97", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    speed = float(printed.split("down to ")[1].split(" %")[0])
+    assert 97.0 <= speed < 100.0
+    assert "compensation left out in" in printed and "97 % of the speed" in printed
+    commands = read_trajectory(out)
+    jerk = np.abs(np.diff(commands.q, 3, axis=0)).max(axis=0) / commands.ts ** 3
+    assert np.all(jerk <= j_max * (1 + 1e-9))
+    for bad in ("0", "1.5", "x"):
+        with pytest.raises(SystemExit):
+            main(["compensate", str(circle), "--min-speed", bad, "-o", str(out)])
+        assert "--min-speed" in capsys.readouterr().err
+
+
 def test_module_entry_point(traj_csv, tmp_path):
     import subprocess
     import sys

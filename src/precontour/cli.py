@@ -26,7 +26,7 @@ from . import __version__
 from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS,
                        COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
-                       DEFAULT_LEARNING_PASSES, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
+                       DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
                        DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
                        GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, builtin_machines,
                        default_max_samples)
@@ -218,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "e.g. the base controller of 'precontour identify', run on "
                                  "the machine file's drives: identified J, B and friction when "
                                  "the log had motor currents)")
+    _add_min_speed_option(compensate)
     _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
     compensate.add_argument("-o", "--output", type=Path, required=True,
                             help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
@@ -395,6 +396,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "learning update smoothed, a command kept only if it keeps the "
                           "limits and is nowhere worse there than the uncompensated one; "
                           "each pass costs 27 virtual-machine runs (default 0 = off)")
+    _add_min_speed_option(run)
     _add_tol_option(run)
     run.add_argument("-o", "--output", type=Path, required=True,
                      help="compensated G-code program (.ngc, .nc, ...)")
@@ -548,6 +550,23 @@ def _number(text: str, *, allow_zero: bool) -> float:
         kind = "number >= 0" if allow_zero else "positive number"
         raise argparse.ArgumentTypeError(f"must be a {kind}, got {text!r}")
     return value
+
+
+def _speed_fraction(text: str) -> float:
+    value = _number(text, allow_zero=False)
+    if value > 1.0:
+        raise argparse.ArgumentTypeError(f"must be a fraction in (0, 1], got {text!r}")
+    return value
+
+
+def _add_min_speed_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--min-speed", type=_speed_fraction, default=DEFAULT_MIN_SPEED,
+                        metavar="FRACTION",
+                        help="lowest speed, as a fraction of the planned speed, to which the "
+                             "motion is slowed locally to keep the machine's limits; where "
+                             "keeping them would need slower, the compensation there is left "
+                             "out (the planned commands, tapered in and out) and said so; 1 = "
+                             f"never slowed (default {DEFAULT_MIN_SPEED:g})")
 
 
 def _positive_float(text: str) -> float:
@@ -717,11 +736,19 @@ def run_compensate(args: argparse.Namespace) -> int:
                 learn=0 if machine_actual is None else args.learn,
                 learn_controller=learn_controller.name, method=args.method,
                 iterations=args.iterations, tol_linear=args.tol_linear,
-                tol_rotary=args.tol_rotary, learning_progress=learning_progress)
+                tol_rotary=args.tol_rotary, learning_progress=learning_progress,
+                min_speed=args.min_speed)
             result = limited.result
             print(f"within the machine's limits: "
                   + (f"slowed in {len(limited.slowdowns)} window(s), "
-                     f"+{limited.added_time:.3f} s" if limited.slowdowns else "not slowed"))
+                     f"+{limited.added_time:.3f} s, down to "
+                     f"{100 * min(s.speed for s in limited.slowdowns):.1f} % of the speed"
+                     if limited.slowdowns else "not slowed"))
+            if limited.uncompensated:
+                print(f"compensation left out in {len(limited.uncompensated)} window(s) where "
+                      f"slowing down to {100 * args.min_speed:g} % of the speed or more could "
+                      "not keep the limits: " + ", ".join(
+                          f"t = {a:.3f}-{b:.3f} s" for a, b in limited.uncompensated[:10]))
     write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
     print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
           f"{result.iterations} pass(es) kept")
@@ -965,7 +992,8 @@ def run_run(args: argparse.Namespace) -> int:
                              controller=args.controller, tcp=args.tcp, dwell=args.dwell,
                              corner_tolerance=args.corner_tol, max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
-                             progress=progress, workers=1, learn=args.learn)
+                             progress=progress, workers=1, learn=args.learn,
+                             min_speed=args.min_speed)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):

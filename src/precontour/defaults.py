@@ -31,6 +31,10 @@ DEFAULT_DWELL = 0.2
 #: Default corner tolerance of a G-code program, mm: the blend of a corner passes within this
 #: of it.
 DEFAULT_CORNER_TOLERANCE = 0.01
+#: Default floor of the local slow-downs that keep the machine's limits, as a fraction of the
+#: planned speed (``run`` / ``compensate --min-speed``): where a limit would need a slower
+#: motion, the corrections there taper to the planned commands instead.
+DEFAULT_MIN_SPEED = 0.5
 #: Peak memory per trajectory sample of the commands a machinist's program goes through
 #: (trajectory, predict, compensate, simulate, run), bytes, with a margin:
 #: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample (built-in ``paper``

@@ -23,8 +23,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
-from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
-                                         learn_within_limits)
+from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
+                                         compensate_within_limits, learn_within_limits)
 from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, EXPORT_FORMATS,
                        default_max_samples)
 from .errors import InputError, MachineLimitError, notice
@@ -286,7 +286,8 @@ class RunResult:
         left_out = self.limited.uncompensated
         if left_out:
             lines.append(f"compensation left out in {len(left_out)} window(s) where slowing down "
-                         "could not keep the limits (the planned commands there): "
+                         f"to {100 * self.limited.min_speed:g} % of the planned speed or "
+                         "more could not keep the limits (the planned commands there): "
                          + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in left_out[:10])
                          + (" ..." if len(left_out) > 10 else ""))
         kinks = self.limited.kinks
@@ -350,7 +351,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                 max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int = 0,
-                ensemble: MachineEnsemble | None = None) -> RunResult:
+                ensemble: MachineEnsemble | None = None,
+                min_speed: float = MIN_SPEED) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``machine`` (a built-in name or a machine file) and ``controller`` have no
     default: a program compensated for another machine than the user's is wrong silently.
@@ -361,7 +363,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
     draws of ``ensemble`` (default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
     result nowhere worse than uncompensated on them, block by block (each source line;
-    :func:`learn_on_ensemble`).
+    :func:`learn_on_ensemble`). ``min_speed``: the floor of the local slow-downs that keep
+    the limits, a fraction of the planned speed (below it the planned commands are kept).
     ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
     when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
     samples; more than 1 needs the calling script's own code under
@@ -401,7 +404,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
 
     limited = compensate_within_limits(planned, machine_obj.kinematics, models, limits,
                                        line=line, iterations=iterations,
-                                       progress=round_progress)
+                                       progress=round_progress, min_speed=min_speed)
     timings["compensate"] = time.perf_counter() - start
     if learn:
         reference = limited.reference

@@ -91,6 +91,44 @@ def test_windows_slowing_cannot_cure_fall_back_to_the_planned_commands(machine, 
         np.testing.assert_array_equal(once.result.trajectory.q[middle], circle.q[middle])
 
 
+@pytest.mark.parametrize("path, floor, left_out", [("circle", 0.9, False), ("fan", 0.9, True),
+                                                   ("circle", 0.97, True)])
+def test_no_window_is_slowed_below_the_floor(machine, path, floor, left_out):
+    """Unfloored, circle and fan slow to 77-80 % of their speed (measured); with a floor
+    above that, the time map never runs slower than the floor and the limits hold (plain
+    finite differences). Where the floor stopped the slowing (circle at 0.9 needed none: its
+    retiming margin covered it), the planned commands are kept."""
+    traj = generate_trajectory(builtin_path(path), machine)
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    free = compensate_within_limits(traj, machine.kinematics, models, limits, min_speed=0.5)
+    assert min(s.speed for s in free.slowdowns) < floor - 0.05
+    floored = compensate_within_limits(traj, machine.kinematics, models, limits,
+                                       min_speed=floor)
+    assert np.diff(floored.planned_index).min() >= floor
+    assert min(s.speed for s in floored.slowdowns) >= floor
+    assert floored.added_time < free.added_time
+    q = floored.result.trajectory.q
+    for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
+                                                limits.jerk)):
+        assert np.all(peak <= limit * (1 + 1e-9))
+    assert bool(floored.uncompensated) == left_out and floored.min_speed == floor
+    t = floored.reference.t
+    for start, stop in floored.uncompensated:
+        middle = (t >= start + 0.15) & (t <= stop - 0.15)
+        np.testing.assert_array_equal(q[middle], floored.reference.q[middle])
+
+
+def test_a_floor_of_one_never_slows_and_keeps_the_limits(machine, circle):
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    result = compensate_within_limits(circle, machine.kinematics, models, limits, min_speed=1.0)
+    assert result.slowdowns == () and result.reference.n_samples == circle.n_samples
+    assert result.check.ok and result.uncompensated
+    with pytest.raises(ValueError, match="min_speed"):
+        compensate_within_limits(circle, machine.kinematics, models, limits, min_speed=0.0)
+
+
 def test_splicing_matches_compensating_everything_again(machine, circle):
     models = machine.controller("pid-high").error_models(machine.drives)
     limits = AxisLimits.from_machine(machine)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..defaults import DEFAULT_MIN_SPEED
 from ..errors import MachineLimitError
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
@@ -46,6 +47,13 @@ LATE_ROUND = 4
 #: (the feed planner's 0.98) needed 4 compensation rounds on a 2-minute test path, 0.9
 #: needed 3; each round is a compensation, the costliest step of ``run``.
 RETIME_MARGIN = 0.9
+#: Default lowest speed of a slowed window, as a fraction of the planned speed there: where
+#: keeping a limit would need a slower motion, the corrections there taper to the planned
+#: commands instead (which keep the limits) and the motion keeps this speed.
+MIN_SPEED = DEFAULT_MIN_SPEED
+#: The whole-sample rounding of a slowed window (:func:`~..trajectory.retime.added_stretch`)
+#: adds up to one sample to it: the stretch aims this far inside the floor.
+_FLOOR_MARGIN = 0.98
 #: A first check asking for more time stretch than this marks a kink of the corrections, not
 #: their dynamics. The corrections' own derivatives add up to 91 % to the peak jerk on the
 #: built-in paths (stretch 1.91^(1/3) = 1.24); a jump of the tip correction between two
@@ -82,6 +90,8 @@ class LimitedCompensation:
     kinks : tuple of (float, float)
         Windows (s, time of the original reference) where a kink of the corrections was
         smoothed by blending into axis tracking-error pre-compensation (:data:`KINK_STRETCH`).
+    min_speed : float
+        The floor of the slow-downs, a fraction of the planned speed (:data:`MIN_SPEED`).
     """
 
     result: CompensationResult
@@ -94,6 +104,7 @@ class LimitedCompensation:
     check: LimitCheck
     uncompensated: tuple[tuple[float, float], ...] = ()
     kinks: tuple[tuple[float, float], ...] = ()
+    min_speed: float = MIN_SPEED
 
     @property
     def added_time(self) -> float:
@@ -102,7 +113,7 @@ class LimitedCompensation:
 
 def compensate_within_limits(reference: Trajectory, kinematics, models, limits: AxisLimits, *,
                              line: np.ndarray | None = None, max_rounds: int = MAX_ROUNDS,
-                             progress=None, splice: bool = True,
+                             progress=None, splice: bool = True, min_speed: float = MIN_SPEED,
                              **options) -> LimitedCompensation:
     """Compensate ``reference`` (with :func:`~.precompensate.compensate` and ``options``),
     slowing it down locally and compensating again until the commands keep ``limits``.
@@ -110,13 +121,22 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     The first round compensates the whole reference. After a re-timing, ``splice=True``
     compensates again only around the slowed windows and splices the result into the
     previous commands (:func:`splice_recompensation`); ``False`` compensates everything again.
+    No sample is slowed below ``min_speed`` (a fraction of its planned speed, 0 < min_speed
+    <= 1; 1: never slowed): where a limit would need more, the corrections there taper to the
+    planned commands (:func:`taper_corrections`; reported in ``uncompensated``).
     ``progress``, if given, is called as ``progress(round, message)``. Raises
     :class:`~precontour.errors.MachineLimitError` when a command leaves an axis's travel
     (slowing down cannot help) or the limits still fail after ``max_rounds`` compensations.
     """
+    if not 0.0 < min_speed <= 1.0:
+        raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
     ts = reference.ts
     t0 = float(reference.t[0])
     original_line = line
+    # samples (of the current reference) whose corrections taper to the planned commands
+    # because the floor stops the slowing there; kept through every later re-timing
+    floored = np.zeros(reference.n_samples, dtype=bool)
+    floored_windows: list[tuple[int, int]] = []
     to_original = np.arange(reference.n_samples, dtype=float)
     current, current_line = reference, line
     first_check = None
@@ -134,14 +154,25 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                 kinks += [(t0 + to_original[a] * ts, t0 + to_original[b] * ts)
                           for a, b in windows]
                 check = check_limits(q, ts, limits, t0=t0)
+        over = check.ratio > 1.0 + CHECK_RTOL
+        # the largest further stretch each sample may take and keep the floor: its speed now
+        # (original samples per sample) over the floor
+        room = _FLOOR_MARGIN * _speed(to_original) / min_speed
+        stuck = over & (room <= 1.0 + CHECK_RTOL)
+        if check.position_ok and (floored.any() or stuck.any()):
+            floored |= stuck
+            q, floored_windows = taper_corrections(current.q, q, floored, ts)
+            check = check_limits(q, ts, limits, t0=t0)
+            over = check.ratio > 1.0 + CHECK_RTOL
         if check.ok:
-            if round_ > 1:
+            if round_ > 1 or floored.any():
                 result = _result_for(current, q, result, kinematics, models, options)
             return LimitedCompensation(
                 result=result, reference=current, line=current_line,
                 slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
                 planned_index=to_original, rounds=round_, first_check=first_check, check=check,
-                kinks=_merged(kinks))
+                uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in floored_windows),
+                kinks=_merged(kinks), min_speed=min_speed)
         if not check.position_ok:
             raise MachineLimitError("the compensated commands leave an axis's travel, which "
                                     "slowing down cannot cure: " + check.format())
@@ -158,7 +189,9 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         ratio = np.sqrt(check.ratio) if round_ < LATE_ROUND else check.ratio
         need = check.stretch if round_ == 1 else np.maximum(check.stretch, ratio)
         stretch = np.where(need > 1.0 + CHECK_RTOL, need / RETIME_MARGIN, 1.0)
+        stretch = np.minimum(stretch, np.maximum(room, 1.0))
         retimed = retime(current, stretch, line=current_line)
+        floored = floored[np.clip(np.rint(retimed.old_index).astype(int), 0, floored.size - 1)]
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
         previous, current, current_line = current, retimed.trajectory, retimed.line
         if progress is not None:
@@ -172,7 +205,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             q = result.trajectory.q
     # Slowing down no longer helps where a correction has a kink (its jerk does not fall when
     # the motion slows): there the commands go back to the planned ones, which keep the limits.
-    tapered, windows = taper_corrections(current.q, q, check.ratio > 1.0 + CHECK_RTOL, ts)
+    tapered, windows = taper_corrections(current.q, q, floored | (check.ratio > 1.0 + CHECK_RTOL),
+                                         ts)
     final = check_limits(tapered, ts, limits, t0=t0)
     if not final.ok:
         raise MachineLimitError(f"the compensated commands still exceed the machine's limits "
@@ -183,7 +217,16 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
         planned_index=to_original, rounds=max_rounds, first_check=first_check, check=final,
         uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows),
-        kinks=_merged(kinks))
+        kinks=_merged(kinks), min_speed=min_speed)
+
+
+def _speed(to_original: np.ndarray) -> np.ndarray:
+    """Speed at each sample as a fraction of the planned one: original samples per sample
+    of the time map (the slower of the two intervals at each sample)."""
+    if to_original.size < 2:
+        return np.ones_like(to_original)
+    rate = np.diff(to_original)
+    return np.minimum(np.r_[rate[0], rate], np.r_[rate, rate[-1]])
 
 
 def _merged(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
