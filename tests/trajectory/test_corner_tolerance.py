@@ -194,3 +194,23 @@ def test_boat_rotary_only_rapids_hold_the_tip(trt, tmp_path):
         assert rows.size > 50
         assert off.max() < 1e-6
     assert summarize(traj, trt).within_limits
+
+
+def test_a_corner_still_outside_becomes_a_stop(machine, tmp_path, monkeypatch):
+    # dense G93 chords at 200 mm/s: their blends add up (before the check: 11.6 times the
+    # tolerance). Without slow-down passes, the corners found outside become stops, which the
+    # path passes through exactly.
+    import precontour.trajectory.program as timing
+
+    text = "G0 X0 Y0 Z0 A0 C0\n" + SYNTHETIC["dense G93"].format(g=12000 / 0.15708)
+    program = read_program(program_text(tmp_path, text), machine)
+    slowed = program_trajectory(program, machine)
+    monkeypatch.setattr(timing, "CORNER_PASSES", 0)
+    stopped = program_trajectory(program, machine)
+    to_points, to_path = corner_distances(program, stopped, machine)
+    assert to_points.max() <= TOLERANCE and to_path.max() <= TOLERANCE
+    assert summarize(stopped, machine).within_limits
+    exact = np.flatnonzero(to_points < 1e-9)
+    assert exact.size > 2   # start, end and at least one stop on the way
+    assert stopped.duration > slowed.duration
+    np.testing.assert_allclose(stopped.q[-1], program.q[-1], atol=1e-12)

@@ -17,22 +17,33 @@ length / F) or, for a rapid, none. The time law is built the way FIR-interpolati
    velocity steps between blocks become ramps, so |a| <= dv/T1 and |j| <= dv/(T1 T2) for a
    velocity step dv. T1 and T2 are the shortest the segment's largest step allows on every
    axis: T1 = max(dv_i/a_i, sqrt(dv_i/j_i)), T2 = max(dv_i/j_i)/T1. Averaging never raises a
-   velocity, so velocity limits hold.
+   velocity, so velocity limits hold. In TCP moves the filters average the tool tip and the
+   rotary axes, and the linear axes are their kinematics (``linear_axes``), as a TCP
+   controller computes its joints: the tip follows the averaged tip path, and stands still
+   while only the rotary axes turn (averaging the linear axes themselves would cut the chord
+   of their circle and move the tip).
 4. **Check and slow down.** Every sample is checked against each axis's velocity, acceleration
    and jerk limit (finite differences at the servo period, rest before and after the
-   segment). Where a limit is exceeded (velocity steps adding up within T1, or a TCP move
-   whose linear axes speed up mid-block), the blocks feeding that sample are slowed by the
-   ratio, and the segment is filtered again.
+   segment), and every corner against its tolerance (below). Where a limit is exceeded
+   (velocity steps adding up within T1, or a TCP move whose linear axes speed up mid-block),
+   the blocks feeding that sample are slowed by the ratio, and the segment is filtered again.
 
 **Corners between linear blocks** are blended by the filters, as a CNC blends within a
 tolerance: a velocity step dv at a corner displaces the path by at most dv * r across each
-leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
+leg, and passes the corner point at about r times the part of dv across the corner's bisector
+(r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
 (T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (the program's
 G64 P; 0 under G61/G61.1; else ``tolerance``, default :data:`DEFAULT_TOLERANCE`), the two
 blocks are slowed near the corner (long blocks are cut one filter window from each end, so
 that only their ends slow down); where it would take a slow-down below :data:`SHARP_CORNER`
 of the speed, the axes stop at the corner instead, which costs less time (about one filter
-window) and passes through it exactly. **Block times are kept** otherwise: every block runs
+window) and passes through it exactly. That estimate holds for one corner at a time; where
+corners follow each other within a filter window (short blocks, dense rapids), their
+displacements add up. So the filtered path itself is measured: the distance from each corner
+point to the polyline of the samples whose filter window reaches it. A corner farther than
+:data:`CORNER_CHECK` of its tolerance slows the blocks within a filter window of it again (to
+:data:`MARGIN` of the tolerance); one still outside after :data:`CORNER_PASSES` passes
+becomes a stop. **Block times are kept** otherwise: every block runs
 in its programmed time, and a segment lasts the sum of its block times plus T1 + T2 (the
 filters' start-up and run-out), because a moving average delays the motion by half its
 length and does not stretch it.
