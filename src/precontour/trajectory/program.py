@@ -17,22 +17,33 @@ length / F) or, for a rapid, none. The time law is built the way FIR-interpolati
    velocity steps between blocks become ramps, so |a| <= dv/T1 and |j| <= dv/(T1 T2) for a
    velocity step dv. T1 and T2 are the shortest the segment's largest step allows on every
    axis: T1 = max(dv_i/a_i, sqrt(dv_i/j_i)), T2 = max(dv_i/j_i)/T1. Averaging never raises a
-   velocity, so velocity limits hold.
+   velocity, so velocity limits hold. In TCP moves the filters average the tool tip and the
+   rotary axes, and the linear axes are their kinematics (``linear_axes``), as a TCP
+   controller computes its joints: the tip follows the averaged tip path, and stands still
+   while only the rotary axes turn (averaging the linear axes themselves would cut the chord
+   of their circle and move the tip).
 4. **Check and slow down.** Every sample is checked against each axis's velocity, acceleration
    and jerk limit (finite differences at the servo period, rest before and after the
-   segment). Where a limit is exceeded (velocity steps adding up within T1, or a TCP move
-   whose linear axes speed up mid-block), the blocks feeding that sample are slowed by the
-   ratio, and the segment is filtered again.
+   segment), and every corner against its tolerance (below). Where a limit is exceeded
+   (velocity steps adding up within T1, or a TCP move whose linear axes speed up mid-block),
+   the blocks feeding that sample are slowed by the ratio, and the segment is filtered again.
 
 **Corners between linear blocks** are blended by the filters, as a CNC blends within a
 tolerance: a velocity step dv at a corner displaces the path by at most dv * r across each
-leg (r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
+leg, and passes the corner point at about r times the part of dv across the corner's bisector
+(r = integral of tau h(tau) over tau > 0 of the filters' combined kernel h, between
 (T1 + T2)/12 and (T1 + T2)/8). Where that would exceed the corner tolerance (the program's
 G64 P; 0 under G61/G61.1; else ``tolerance``, default :data:`DEFAULT_TOLERANCE`), the two
 blocks are slowed near the corner (long blocks are cut one filter window from each end, so
 that only their ends slow down); where it would take a slow-down below :data:`SHARP_CORNER`
 of the speed, the axes stop at the corner instead, which costs less time (about one filter
-window) and passes through it exactly. **Block times are kept** otherwise: every block runs
+window) and passes through it exactly. That estimate holds for one corner at a time; where
+corners follow each other within a filter window (short blocks, dense rapids), their
+displacements add up. So the filtered path itself is measured: the distance from each corner
+point to the polyline of the samples whose filter window reaches it. A corner farther than
+:data:`CORNER_CHECK` of its tolerance slows the blocks within a filter window of it again (to
+:data:`MARGIN` of the tolerance); one still outside after :data:`CORNER_PASSES` passes
+becomes a stop. **Block times are kept** otherwise: every block runs
 in its programmed time, and a segment lasts the sum of its block times plus T1 + T2 (the
 filters' start-up and run-out), because a moving average delays the motion by half its
 length and does not stretch it.
@@ -50,6 +61,7 @@ interpolated program path as the machine is told to move, rapids included.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -69,6 +81,13 @@ SHARP_CORNER = 0.5
 BLEND_ROUND_OFF = 1e-9
 #: Planning passes per segment before giving up.
 MAX_PASSES = 30
+#: A corner whose blend passes farther than this fraction of its tolerance from it is slowed
+#: again (to :data:`MARGIN` of it): a margin over the guarantee, for round-off and for
+#: measures of the distance on other samples of the same path.
+CORNER_CHECK = 0.99
+#: Passes that slow a corner whose blend is still outside its tolerance, before it becomes a
+#: stop instead.
+CORNER_PASSES = 8
 #: The former fixed sample limit of a program's trajectory (5 * 10^7 samples are about 14 hours
 #: at 1 kHz and 9 GB of arrays). The default is now the memory-sized limit of CL data
 #: (``default_max_samples``), so that ``run`` and ``trajectory`` refuse the same programs.
@@ -242,6 +261,16 @@ def _segment_bounds(program):
     return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
 
 
+@dataclass(frozen=True)
+class _Corners:
+    """Nodes of a segment's pieces whose blend is checked: node index, tolerance (mm), and
+    whether it is measured at the tool tip (TCP) or in the linear axes."""
+
+    node: np.ndarray
+    tolerance: np.ndarray
+    tcp: np.ndarray
+
+
 class _Context:
     """What every segment needs: the program's moves, the kinematics and the limits."""
 
@@ -305,9 +334,12 @@ class _Context:
         within the tolerance. The moving averages displace a corner by dv * reach (dv the
         velocity step, reach = integral of tau h(tau) over tau > 0 for their combined kernel
         h), so the blend leaves each leg by at most ``reach`` times the part of dv across
-        that leg; a speed change along a straight line leaves the path alone. Where the path
-        turns back by more than a right angle, the blend also falls short of the corner
-        point, by up to ``reach`` times the whole step.
+        that leg, and passes the corner point at about ``reach`` times the part of dv across
+        the corner's bisector; a speed change along a straight line leaves the path alone.
+        Where the path turns back by more than a right angle, the blend also falls short of
+        the corner point, by up to ``reach`` times the whole step. The factor aims at
+        :data:`MARGIN` of the tolerance; what corners near each other add up to is measured
+        on the filtered path (:meth:`corner_excess`).
         ``node_path`` is the tool tip (TCP pieces) or the linear axes (the others) at the
         pieces' ends."""
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -324,7 +356,13 @@ class _Context:
         d_v, d_w = v / speed[moving[:-1], None], w / speed[moving[1:], None]
         step = w - v
         across = np.zeros(step.shape[0])
-        for d in (d_v, d_w):
+        # the part of the step across either leg (how far the blend leaves it) and across
+        # the corner's bisector (how far it passes from the corner point: for equal speeds
+        # the whole step, up to 1/cos(angle/2) times the part across a leg)
+        bisector = d_v + d_w
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bisector /= np.linalg.norm(bisector, axis=1, keepdims=True)
+        for d in (d_v, d_w, bisector):
             along = np.einsum("ij,ij->i", step, d)[:, None] * d
             across = np.maximum(across, np.linalg.norm(step - along, axis=1))
         # Turning back by more than a right angle, the blend falls short of the corner point
@@ -337,7 +375,8 @@ class _Context:
         corner_tolerance = np.minimum.reduceat(tolerance[moving[0]:moving[-1]],
                                                np.cumsum(span) - span)
         with np.errstate(divide="ignore", invalid="ignore"):
-            pair = np.where(blend > 0, np.minimum(1.0, corner_tolerance / blend), 1.0)
+            pair = np.where(blend > 0, np.minimum(1.0, MARGIN * corner_tolerance / blend),
+                            1.0)
         factor[moving[0]:moving[-1]] = np.repeat(pair, span)
         return factor
 
@@ -358,20 +397,50 @@ class _Context:
 
     def nominal(self, node_t, node_q, node_tip, piece_tcp, n):
         """Nominal axis commands at n + 1 samples j*ts over the segment, axis-major (5, n + 1)
-        so that every per-axis pass runs over contiguous memory, and the piece each sample is
-        in."""
+        so that every per-axis pass runs over contiguous memory; the piece each sample is in;
+        and, where the segment has TCP pieces, the nominal tool tip (3, n + 1) (None
+        otherwise): straight between the nodes in TCP pieces, the direct kinematics of the
+        axes in the others."""
         tau = np.arange(n + 1) * self.ts
         q = np.empty((5, n + 1))
         for i in range(5):
             q[i] = np.interp(tau, node_t, node_q[:, i])
         piece = np.searchsorted(node_t[1:-1], tau, side="right")
         tcp = piece_tcp[piece]
+        tip = None
         if tcp.any():
-            tip = np.stack([np.interp(tau[tcp], node_t, node_tip[:, i]) for i in range(3)],
-                           axis=1)
-            q[:3, tcp] = self.kinematics.linear_axes(tip, q[3:, tcp].T).T
+            tip = np.empty((3, n + 1))
+            for i in range(3):
+                tip[i] = np.interp(tau, node_t, node_tip[:, i])
+            q[:3, tcp] = self.kinematics.linear_axes(tip[:, tcp].T, q[3:, tcp].T).T
+            if not tcp.all():
+                tip[:, ~tcp] = self.kinematics.forward(q[:, ~tcp].T)[0].T
         q[:, -1] = node_q[-1]
-        return q, piece
+        return q, piece, tip
+
+    def filtered(self, q_nom, tip_nom, tcp, n1, n2):
+        """The jerk filters applied to the nominal motion. Outside TCP each axis is averaged
+        on its own. In TCP the tool tip and the rotary axes are averaged and the linear axes
+        come from the kinematics (``linear_axes``), as a TCP controller computes its joints:
+        the tip then follows the averaged tip path (it stands still while only the rotary
+        axes turn), where averaging the linear axes themselves would let it wander as the
+        table turns. Where the filter window spans TCP and other pieces, the two are mixed
+        by the averaged share of TCP samples."""
+        def box(x):
+            return _box(_box(x, n1, n1 + n2 - 2), n2, 0)
+
+        if tip_nom is None:
+            return box(q_nom)
+        q = np.empty((5, q_nom.shape[1] + n1 + n2 - 2))
+        q[3:] = box(q_nom[3:])
+        q[:3] = self.kinematics.linear_axes(box(tip_nom).T, q[3:].T).T
+        if not tcp.all():
+            share = box(tcp.astype(float)[None])[0]
+            q[:3] = share * q[:3] + (1.0 - share) * box(q_nom[:3])
+        # the ends at rest exactly where they were programmed (not through the kinematics'
+        # round-off)
+        q[:, 0], q[:, -1] = q_nom[:, 0], q_nom[:, -1]
+        return q
 
     def segment(self, k0, k1, durations):
         """Filtered commands and line numbers of moves k0..k1-1, from rest to rest."""
@@ -383,9 +452,11 @@ class _Context:
         window = (n1 + n2) * ts
         reach = _reach(n1, n2) * ts
         durations, move, node_q, node_tip = self.pieces(k0, k1, durations, window)
+        programmed = durations
         piece_tcp = self.tcp[move]
         piece_tolerance = self.tolerance[move]
-        if np.isfinite(piece_tolerance).any():
+        blended = bool(np.isfinite(piece_tolerance).any())
+        if blended:
             # the tighter tolerance of the two blocks meeting at a corner applies
             tolerance = np.minimum(piece_tolerance[:-1], piece_tolerance[1:])
             # each piece's path in the frame it is interpolated in (its end node decides)
@@ -402,35 +473,100 @@ class _Context:
                     return self._split(k0, k1, at, durations, move)
             durations = self.blend_within_tolerance(durations, node_path, reach, tolerance)
         lines = self.program.line[move]
-        for _ in range(MAX_PASSES):
+        corners = self._corners(move, piece_tcp, piece_tolerance) if blended else None
+        for passes in range(1, MAX_PASSES + 1):
             total = durations.sum()
             n = max(1, math.ceil(total / ts - 1e-9))
             # stretch to a whole number of samples (never faster than planned)
             node_t = np.concatenate([[0.0], np.cumsum(durations * (n * ts / total))])
-            q_nom, piece = self.nominal(node_t, node_q, node_tip, piece_tcp, n)
-            q = _box(_box(q_nom, n1, n1 + n2 - 2), n2, 0)
+            q_nom, piece, tip_nom = self.nominal(node_t, node_q, node_tip, piece_tcp, n)
+            q = self.filtered(q_nom, tip_nom, piece_tcp[piece], n1, n2)
             ratio, worst = _violations(q, ts, self.limits)
-            if worst <= 1.0 + CHECK_RTOL:
+            factor = np.ones(durations.size)
+            off = None
+            if corners is not None:
+                off = self.corner_excess(q, node_t, node_q, node_tip, corners, n1 + n2)
+                if off.size and passes > CORNER_PASSES:
+                    # still outside after several slow-downs: stop at those corners (the
+                    # path passes through a stop exactly)
+                    at = sorted({int(move[corners.node[c] - 1]) + 1 for c in off[:, 0]
+                                 .astype(int)} - {k0, k1})
+                    if at:
+                        return self._split(k0, k1, at, programmed, move)
+                for c, excess in off:
+                    # the pieces whose nominal motion the blend of the corner averages
+                    t_c = node_t[corners.node[int(c)]]
+                    lo = max(int(np.searchsorted(node_t, t_c - window, "right")) - 1, 0)
+                    hi = min(int(np.searchsorted(node_t, t_c + window, "left")),
+                             durations.size)
+                    factor[lo:hi] = np.maximum(factor[lo:hi], excess / MARGIN)
+            if worst <= 1.0 + CHECK_RTOL and (off is None or not off.size):
                 lag = (n1 + n2 - 2) // 2
                 at = np.clip(np.arange(q.shape[1]) - lag, 0, n)
                 return q.T, lines[piece[at]]
-            # slow down every piece whose nominal motion feeds an offending sample
-            reach = n1 + n2
-            bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
-            lo = piece[np.clip(bad - reach - 1, 0, n)]
-            hi = piece[np.clip(bad + 2, 0, n)]
-            factor = np.ones(durations.size)
-            runs = np.flatnonzero(np.diff(bad) > 1)
-            starts = np.concatenate([[0], runs + 1])
-            stops = np.concatenate([runs + 1, [bad.size]])
-            for a, b in zip(starts.tolist(), stops.tolist()):
-                f = ratio[bad[a:b]].max() / MARGIN
-                seg = slice(int(lo[a:b].min()), int(hi[a:b].max()) + 1)
-                factor[seg] = np.maximum(factor[seg], f)
+            if worst > 1.0 + CHECK_RTOL:
+                # slow down every piece whose nominal motion feeds an offending sample
+                span = n1 + n2
+                bad = np.flatnonzero(ratio > 1.0 + CHECK_RTOL)
+                lo = piece[np.clip(bad - span - 1, 0, n)]
+                hi = piece[np.clip(bad + 2, 0, n)]
+                runs = np.flatnonzero(np.diff(bad) > 1)
+                starts = np.concatenate([[0], runs + 1])
+                stops = np.concatenate([runs + 1, [bad.size]])
+                for a, b in zip(starts.tolist(), stops.tolist()):
+                    f = ratio[bad[a:b]].max() / MARGIN
+                    seg = slice(int(lo[a:b].min()), int(hi[a:b].max()) + 1)
+                    factor[seg] = np.maximum(factor[seg], f)
             durations = durations * factor
+        what = ("axis limits" if worst > 1.0 + CHECK_RTOL else "corner tolerance")
         raise PrecontourError(f"{self.program.source}, line {self.program.line[k0]}: the "
-                              f"axis limits could not be met after {MAX_PASSES} passes (worst "
+                              f"{what} could not be met after {MAX_PASSES} passes (worst "
                               f"ratio {worst:.6g})")
+
+    def _corners(self, move, piece_tcp, piece_tolerance):
+        """The nodes between pieces whose blend :meth:`corner_excess` checks: interior nodes
+        with a positive, finite tolerance (the tighter of the two pieces'), and the frame
+        each is measured in (the tool tip where the piece ending there is TCP)."""
+        tolerance = np.minimum(piece_tolerance[:-1], piece_tolerance[1:])
+        keep = np.flatnonzero(np.isfinite(tolerance) & (tolerance > 0))
+        return _Corners(node=keep + 1, tolerance=tolerance[keep], tcp=piece_tcp[keep])
+
+    def corner_excess(self, q, node_t, node_q, node_tip, corners, span):
+        """(corner, distance / tolerance) of every corner that the filtered path passes
+        farther than :data:`CORNER_CHECK` of its tolerance from: the distance from the corner point to the polyline
+        of the samples whose filter window reaches the corner's time (the blend; the path is
+        farther from the corner elsewhere). Measured where the tolerance applies: at the tool
+        tip for TCP pieces, in the linear axes otherwise."""
+        if not corners.node.size:
+            return np.zeros((0, 2))
+        n_out = q.shape[1]
+        tcp = corners.tcp
+        if tcp.any():
+            tips = self.kinematics.forward(q.T)[0]
+        width = min(span + 4, n_out - 1)
+        out = []
+        chunk = max(1, 2_000_000 // (3 * (width + 1)))
+        for first in range(0, corners.node.size, chunk):
+            part = slice(first, first + chunk)
+            node = corners.node[part]
+            point = np.where(tcp[part, None], node_tip[node], node_q[node, :3])
+            start = np.clip(np.floor(node_t[node] / self.ts).astype(np.int64) - 2, 0,
+                            n_out - 1 - width)
+            index = start[:, None] + np.arange(width + 1)
+            path = q[:3, index].transpose(1, 2, 0)
+            if tcp[part].any():
+                path[tcp[part]] = tips[index[tcp[part]]]
+            a, ab = path[:, :-1], np.diff(path, axis=1)
+            rel = point[:, None, :] - a
+            den = np.einsum("ijk,ijk->ij", ab, ab)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.clip(np.einsum("ijk,ijk->ij", rel, ab) / den, 0.0, 1.0)
+            u[~(den > 0)] = 0.0
+            distance = np.linalg.norm(rel - u[..., None] * ab, axis=2).min(axis=1)
+            excess = distance / corners.tolerance[part]
+            bad = np.flatnonzero(excess > CORNER_CHECK)
+            out.append(np.column_stack([bad + first, excess[bad]]))
+        return np.concatenate(out)
 
     def _split(self, k0, k1, at, durations, move):
         """Segments k0..at[0], at[0]..at[1], ..., each from rest to rest, joined like the
