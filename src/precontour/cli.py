@@ -674,91 +674,49 @@ def run_trajectory(args: argparse.Namespace) -> int:
 
 
 def run_compensate(args: argparse.Namespace) -> int:
-    from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program
-    from .machine.controllers import is_closed_loop
-    from .machine.machine_file import load_machine
-    from .simulation.ensemble import ensemble_actual
+    from .system import compensate, load_servo
     from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
-    from .workflow import compensate_keeping_limits
 
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
-    machine = load_machine(args.machine)
-    controller = machine.controller(args.controller)
-    models = controller.error_models(machine.drives)
-    learn_controller = learning_controller(machine, controller, args.learn_controller)
-    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
-    if not traj.has_reference:
-        raise InputError("compensation needs the reference tool path columns "
-                         "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour trajectory')",
-                         source=str(args.trajectory), field="Px")
+    servo = load_servo(args.machine, args.controller)
+    traj = read_trajectory(args.trajectory, kinematics=servo.kinematics)
 
     def progress(n, summary):
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    machine_actual = None
-    if args.learn and args.method == "contour":
-        if abs(traj.ts - machine.servo_period) > 1e-9 * machine.servo_period:
-            print(f"  no learning: the trajectory's sample period {traj.ts:g} s is not the "
-                  f"servo period {machine.servo_period:g} s of the virtual machine",
-                  file=sys.stderr)
-        elif traj.n_samples > AT_ONCE_SAMPLES:
-            # learning runs the whole trajectory on the virtual machine; long programs are
-            # compensated in pieces, linearly
-            print(f"  no learning: {traj.n_samples} samples are more than "
-                  f"{AT_ONCE_SAMPLES} (compensated in pieces)", file=sys.stderr)
-        else:
-            if is_closed_loop(learn_controller):
-                print(f"  learning against controller {learn_controller.name!r}, a transfer "
-                      "function without drives or friction (--learn-controller NAME: the "
-                      "controller the drives run, on this file's drives)", file=sys.stderr)
-            machine_actual = ensemble_actual(traj.t, machine, learn_controller)
-
     def learning_progress(label, summary):
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    learning_options = {} if machine_actual is None else dict(
-        machine_actual=machine_actual, learning_passes=args.learn,
-        learning_progress=learning_progress)
-    # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        if args.ignore_limits:
-            result = compensate_program(traj, machine.kinematics, models, method=args.method,
-                                        iterations=args.iterations, tol_linear=args.tol_linear,
-                                        tol_rotary=args.tol_rotary, progress=progress,
-                                        **learning_options)
-        else:
-            limited = compensate_keeping_limits(
-                traj, machine, args.controller,
-                learn=0 if machine_actual is None else args.learn,
-                learn_controller=learn_controller.name, method=args.method,
-                iterations=args.iterations, tol_linear=args.tol_linear,
-                tol_rotary=args.tol_rotary, learning_progress=learning_progress,
-                min_speed=args.min_speed)
-            result = limited.result
-            print(f"within the machine's limits: "
-                  + (f"slowed in {len(limited.slowdowns)} window(s), "
-                     f"+{limited.added_time:.3f} s, down to "
-                     f"{100 * min(s.speed for s in limited.slowdowns):.1f} % of the speed"
-                     if limited.slowdowns else "not slowed"))
-            if limited.uncompensated:
-                print(f"compensation left out in {len(limited.uncompensated)} window(s) where "
-                      f"slowing down to {100 * args.min_speed:g} % of the speed or more could "
-                      "not keep the limits: " + ", ".join(
-                          f"t = {a:.3f}-{b:.3f} s" for a, b in limited.uncompensated[:10]))
-    write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
-    print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
-          f"{result.iterations} pass(es) kept")
-    print("predicted before: " + _contour_line(result.before))
-    print("predicted after:  " + _contour_line(result.after))
-    if result.learning is not None:
-        learning = result.learning
+        comp = compensate(servo, traj, method=args.method, limits=not args.ignore_limits,
+                          learn=args.learn, iterations=args.iterations,
+                          min_speed=args.min_speed, learn_controller=args.learn_controller,
+                          tol_linear=args.tol_linear, tol_rotary=args.tol_rotary,
+                          progress=progress, learning_progress=learning_progress)
+    if comp.within_limits:
+        print(f"within the machine's limits: "
+              + (f"slowed in {len(comp.slowdowns)} window(s), +{comp.added_time:.3f} s, down "
+                 f"to {100 * min(s.speed for s in comp.slowdowns):.1f} % of the speed"
+                 if comp.slowdowns else "not slowed"))
+        if comp.left_out:
+            print(f"compensation left out in {len(comp.left_out)} window(s) where slowing "
+                  f"down to {100 * args.min_speed:g} % of the speed or more could not keep "
+                  "the limits: " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
+                                             for a, b in comp.left_out[:10]))
+    write_columns(args.output, trajectory_columns(comp.commands), inputs=inputs)
+    print(f"{args.method} pre-compensation on {servo.machine.name}, controller "
+          f"{args.controller}: {comp.passes} pass(es) kept")
+    print("predicted before: " + _contour_line(comp.before))
+    print("predicted after:  " + _contour_line(comp.after))
+    if comp.learning is not None:
+        learning, learner = comp.learning, comp.learning_controller
         print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
               f"{learning.draws} draw(s), {learning.machine_runs} runs): kept {learning.chosen}")
-        print(f"  virtual machine: controller {learn_controller.name} ({learn_controller.type}) "
+        print(f"  virtual machine: controller {learner.name} ({learner.type}) "
               f"on the drives of {args.machine}")
         for name, summary in (("uncompensated", learning.uncompensated),
                               ("linear compensation", learning.linear),
@@ -766,18 +724,6 @@ def run_compensate(args: argparse.Namespace) -> int:
             print(f"  {name + ':':<21}" + _summary_line(summary))
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
-
-
-def learning_controller(machine, controller, name: str | None):
-    """The controller the virtual machine runs when ``compensate`` learns: ``name`` when
-    given, else a closed loop's (``tf``) ``base``, else ``controller`` itself."""
-    from .machine.controllers import is_closed_loop
-
-    if name is not None:
-        return machine.controller(name)
-    if is_closed_loop(controller) and controller.base is not None:
-        return machine.controller(controller.base)
-    return controller
 
 
 def run_simulate(args: argparse.Namespace) -> int:
@@ -796,8 +742,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     machine.controller(args.controller)
     commands = read_trajectory(args.commands)
-    if args.mode == "discrete" and abs(commands.ts - machine.servo_period) > \
-            1e-6 * machine.servo_period:
+    if args.mode == "discrete" and not machine.at_servo_period(commands.ts):
         raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s (discrete mode samples at the "
                          "servo period)", source=str(args.commands), field="t")

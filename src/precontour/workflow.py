@@ -45,9 +45,6 @@ from .trajectory.sampled import Trajectory
 
 #: Extensions a G-code output may have (those the readers take as G-code).
 GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
-#: Relative difference between a command file's sampling period and the machine's servo
-#: period tolerated for a halstreamer file (one line per servo period).
-SERVO_PERIOD_RTOL = 1e-6
 
 #: Samples from which the two virtual-machine runs go to two processes when ``workers`` is
 #: None. The compiled virtual machine already runs the five axes on two threads, so on this
@@ -408,7 +405,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     timings["compensate"] = time.perf_counter() - start
     if learn:
         reference = limited.reference
-        if abs(reference.ts - machine_obj.servo_period) > 1e-9 * machine_obj.servo_period:
+        if not machine_obj.at_servo_period(reference.ts):
             notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
                    f"period {machine_obj.servo_period:g} s of the virtual machine")
         elif reference.n_samples > AT_ONCE_SAMPLES:
@@ -607,7 +604,7 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     info = ProgramInfo(machine=machine_obj.name, controller=controller,
                        method="exported commands", source=str(commands_path))
     if format == "halstreamer":
-        if abs(traj.ts - machine_obj.servo_period) > SERVO_PERIOD_RTOL * machine_obj.servo_period:
+        if not machine_obj.at_servo_period(traj.ts):
             raise InputError(f"sampled every {traj.ts:.6g} s, but a halstreamer file needs one "
                              f"line per servo period ({machine_obj.servo_period:g} s of "
                              f"{machine_obj.name})", source=str(commands_path), field="t")

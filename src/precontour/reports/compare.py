@@ -673,7 +673,7 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
         raise InputError("the comparison needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour "
                          "trajectory')", source=source, field="Px")
-    if abs(traj.ts - machine.servo_period) > 1e-6 * machine.servo_period:
+    if not machine.at_servo_period(traj.ts):
         raise InputError(f"sample period {traj.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s", source=source, field="t")
     if not isinstance(trajectory, Trajectory):
