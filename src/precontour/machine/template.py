@@ -58,6 +58,28 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
     ),
     "xyzac-trt": _linuxcnc_keys("xyzac-trt-kins", "a", "y"),
     "xyzbc-trt": _linuxcnc_keys("xyzbc-trt-kins", "b", "x"),
+    "xyzbc-head-table": (
+        ("x_rot_point", "mm", "C axis centre in the machine frame, x"),
+        ("y_rot_point", "mm", "C axis centre in the machine frame, y"),
+        ("z_rot_point", "mm", "height of the workpiece origin on the C axis"),
+        ("pivot_length", "mm", "B pivot to the spindle nose (gauge line), along the tool axis"),
+        ("tool_offset", "mm", "tool length, spindle nose to tip"),
+        ("b_direction", "", "+1 or -1, the sense of rotation of the B head: +1 turns the tool "
+                            "right-handed about +y (ISO 841)"),
+        ("c_direction", "", "+1 or -1, the sense of rotation of the C table: -1 turns the table "
+                            "left-handed about +z, the tool right-handed relative to the part "
+                            "(ISO 841)"),
+    ),
+    "xyzbc-head-head": (
+        ("pivot_length", "mm", "pivot of the B and C axes to the spindle nose (gauge line), "
+                               "along the tool axis (HAL pin 5axiskins.pivot-length is this "
+                               "plus the tool length)"),
+        ("tool_offset", "mm", "tool length, spindle nose to tip (motion.tooloffset.z)"),
+        ("b_direction", "", "+1 or -1, the sense of rotation of B: -1 is 5axiskins's (the tool "
+                            "tilts towards -x at C = 0 for B > 0)"),
+        ("c_direction", "", "+1 or -1, the sense of rotation of C: +1 is 5axiskins's "
+                            "(right-handed about +z)"),
+    ),
 }
 
 #: ``[drives.<axis>]`` keys: (key, unit on a linear axis, unit on a rotary axis, meaning).
