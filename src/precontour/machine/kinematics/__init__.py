@@ -10,7 +10,9 @@ positions q = [X, Y, Z, A, C]), ``forward(q)``, ``orientation(q)`` (or ``orienta
 - ``xyzac-trt`` (:mod:`.xyzac_trt`): A-C trunnion with LinuxCNC xyzac-trt-kins's offsets;
 - ``xyzbc-trt`` (:mod:`.xyzbc_trt`): B-C trunnion with LinuxCNC xyzbc-trt-kins's offsets;
 - ``xyzbc-head-table`` (:mod:`.xyzbc_head_table`): tilting B head, rotary C table;
-- ``xyzbc-head-head`` (:mod:`.xyzbc_head_head`): B-C fork head, LinuxCNC 5axiskins's geometry.
+- ``xyzbc-head-head`` (:mod:`.xyzbc_head_head`): B-C fork head, LinuxCNC 5axiskins's geometry;
+- ``chain`` (:mod:`.chain`): any of these families as a chain of rotary axes (direction, point,
+  carried by the table or the head); the types above are its presets (:func:`.chain.chain_of`).
 
 The tool tip and orientation are in the workpiece frame: on a table it turns with the table's
 rotary axes, on a head machine it is the machine frame. On the trunnions the tool orientation is
@@ -24,6 +26,7 @@ import numpy as np
 
 from ...errors import InputError, notice
 from .ac_trunnion import ACTrunnion
+from .chain import ChainKinematics, RotaryAxis, chain_of
 from .xyzac_trt import XYZACTrunnion
 from .xyzbc_head_head import XYZBCHeadHead
 from .xyzbc_head_table import XYZBCHeadTable
@@ -42,10 +45,12 @@ KINEMATICS_TYPES = {
     "xyzbc-trt": XYZBCTrunnion.from_table,
     "xyzbc-head-table": XYZBCHeadTable.from_table,
     "xyzbc-head-head": XYZBCHeadHead.from_table,
+    "chain": ChainKinematics.from_table,
 }
 
-__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "XYZACTrunnion", "XYZBCHeadHead",
-           "XYZBCHeadTable", "XYZBCTrunnion", "angle_between", "normalize_orientations"]
+__all__ = ["ACTrunnion", "ChainKinematics", "KINEMATICS_TYPES", "RotaryAxis", "UNIT_TOLERANCE",
+           "XYZACTrunnion", "XYZBCHeadHead", "XYZBCHeadTable", "XYZBCTrunnion", "angle_between",
+           "chain_of", "normalize_orientations"]
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
