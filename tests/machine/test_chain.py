@@ -9,12 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from precontour.errors import MachineFileError
-from precontour.machine import load_machine, parse_machine
+from precontour.machine import parse_machine
 from precontour.machine.kinematics import ChainKinematics, RotaryAxis, chain_of
 from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
 from precontour.machine.machine_file import builtin_machine_text
 
-from test_families import FAMILIES, chain_of as oracle_of  # noqa: E402
+from test_families import FAMILIES, chain_of as oracle_of
 from test_kinematics import ALL_KINEMATICS
 
 finite = dict(allow_nan=False, allow_infinity=False)

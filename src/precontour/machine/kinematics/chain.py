@@ -31,7 +31,6 @@ bridged, the tilt sign chosen within its travel) this type shares. Axes at other
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -177,11 +176,6 @@ class ChainKinematics(TrunnionKinematics):
             tip = _turn_about(tip, table_axis, rotary[..., slot - 3])
         nose = tip - self._tool(rotary, False)
         return nose * np.asarray(self.linear_senses)
-
-    def with_tilt_limits(self, lower: float | None, upper: float | None):
-        values = {"tilt_min": self.tilt_min if self.tilt_min is not None else lower,
-                  "tilt_max": self.tilt_max if self.tilt_max is not None else upper}
-        return dataclasses.replace(self, **values)
 
 
 def direction_problem(letter: str, direction) -> str | None:
