@@ -128,3 +128,53 @@ def test_chain_machine_file_errors_name_the_key(change, message):
     assert text != HEAD_TABLE_AC
     with pytest.raises(MachineFileError, match=message):
         parse_machine(_machine_text(text), source="m.toml")
+
+
+def _oracle_of_chain(kin: ChainKinematics):
+    """The independent 4 x 4 chain of a ChainKinematics, from its description: head axes from
+    the ram outwards (C carries the tilt), table axes from the base outwards (the tilt carries
+    C), each turning right-handed about its direction."""
+    from test_families import Axis, Chain
+
+    def axis(a, slot):
+        return Axis(slot, np.array(a.direction), np.array(a.point), 1.0)
+
+    pairs = ((kin.turn, 4), (kin.tilt, 3))
+    head = tuple(axis(a, s) for a, s in pairs if a.side == "head")
+    table = tuple(axis(a, s) for a, s in reversed(pairs) if a.side == "table")
+    return Chain(head=head, table=table, tool=kin.tool_offset, linear=kin.linear_senses,
+                 frame=(np.eye(3), -np.array(kin.workpiece_origin)))
+
+
+sign = st.sampled_from([1.0, -1.0])
+coordinate = st.floats(-200, 200, **finite)
+chains = st.builds(
+    lambda tilt_letter, sides, s_tilt, s_turn, p_tilt, p_turn, tool, senses, origin:
+    ChainKinematics(
+        tilt=RotaryAxis(tilt_letter, sides[0],
+                        tuple(s_tilt * np.eye(3)[0 if tilt_letter == "A" else 1]), p_tilt),
+        turn=RotaryAxis("C", sides[1], (0.0, 0.0, s_turn), p_turn),
+        tool_offset=tool, linear_senses=senses, workpiece_origin=origin),
+    st.sampled_from(["A", "B"]),
+    st.sampled_from([("table", "table"), ("head", "table"), ("head", "head")]),
+    sign, sign, st.tuples(coordinate, coordinate, coordinate),
+    st.tuples(coordinate, coordinate, coordinate), st.floats(0, 300, **finite),
+    st.tuples(sign, sign, sign), st.tuples(coordinate, coordinate, coordinate))
+
+
+@settings(max_examples=300, deadline=None)
+@given(kin=chains, q=poses)
+def test_any_chain_equals_the_independent_chain_and_inverts(kin, q):
+    q = np.array(q)
+    P, O = kin.forward(q)
+    P_ref, O_ref = _oracle_of_chain(kin).forward(q)
+    np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(O, O_ref, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(kin.orientation(q), O, rtol=0, atol=1e-14)
+    # round trip through the inverse, on the branch of q
+    if abs(np.sin(q[3])) > 1e-6:
+        np.testing.assert_allclose(kin.inverse(P, O, c_near=np.array(q[4])), q, atol=1e-9)
+    # the tool axis: one mm less of tool moves the tip by O
+    from dataclasses import replace
+    P_short, _ = replace(kin, tool_offset=kin.tool_offset - 1.0).forward(q)
+    np.testing.assert_allclose(P_short - P, O, rtol=0, atol=1e-11)

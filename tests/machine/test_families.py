@@ -57,10 +57,11 @@ class Chain:
     table: tuple = ()
     tool: float = 0.0
     frame: tuple = (np.eye(3), np.zeros(3))
+    linear: tuple = (1.0, 1.0, 1.0)     # X, Y, Z move the spindle nose by these times q
 
     def forward(self, q):
         q = np.asarray(q, dtype=float)
-        M = q[:3]
+        M = np.asarray(self.linear) * q[:3]
         H = np.eye(4)
         for axis in self.head:
             H = H @ _motion(axis.direction, M + axis.point, axis.sense * q[axis.slot])
