@@ -303,8 +303,8 @@ def test_run_and_export_have_no_default_machine(argv, missing, tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith(f"precontour {argv[0]}: error: the following arguments are required: "
                           f"{missing}; `precontour machines` lists the built-in machines "
-                          "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt) and their "
-                          "controllers"), err
+                          "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt, head-table-bc, "
+                          "linuxcnc-bridgemill, head-table-ac) and their controllers"), err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -256,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "friction compensation) and on the exact linear model; print the paper's "
                     "Tables 3-4 with ours next to them and write figures, tables and an "
                     "index.html. Only the report's own files are overwritten.")
+    _add_machine_options(demo, controller=None)
     _add_report_option(demo, Path("precontour-demo"))
     demo.add_argument("--paths", default="paper", metavar="NAMES",
                       help="comma-separated built-in paths out of "
@@ -783,7 +784,8 @@ def run_demo(args: argparse.Namespace) -> int:
     paths = tuple(name.strip() for name in args.paths.split(",") if name.strip())
     progress = ProgressLine(sys.stderr)
     try:
-        result = demo_run(args.report, paths=paths, iterations=args.iterations, progress=progress)
+        result = demo_run(args.report, paths=paths, iterations=args.iterations,
+                          machine=args.machine, progress=progress)
     finally:
         progress.close()
     print(f"contour errors on {result.machine.name}: tool tip in um, orientation in mrad "
