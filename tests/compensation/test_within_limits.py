@@ -227,7 +227,9 @@ def _nowhere_worse_on_every_draw(reference, q, machine, controller, ensemble, li
     errors of the uncompensated and of ``q`` compared draw by draw in whole (max and mean,
     tip and orientation) and block by block (each 0.1 s window, or each source line of
     ``line``), the worst draw of ``q`` within the uncompensated command's worst draw plus
-    0.1 um / 1 urad or 5 %. Returns the largest block excess beyond that (<= 0: kept)."""
+    0.1 um / 1 urad, 5 % of it, or 1 % of the uncompensated worst draw's largest error over
+    the program, whichever is largest. Returns the largest block excess beyond that (<= 0:
+    kept)."""
     path = ReferencePath.from_trajectory(reference)
     n = reference.n_samples
     if line is None:
@@ -252,8 +254,9 @@ def _nowhere_worse_on_every_draw(reference, q, machine, controller, ensemble, li
         assert all(after[key] <= before[key] for key in before), (before, after)
     tip0, ori0, _ = worst["before"]
     tip1, ori1, _ = worst["after"]
-    excess = np.maximum(tip1 - tip0 - np.maximum(1e-4, 0.05 * tip0),
-                        1e2 * (ori1 - ori0 - np.maximum(1e-6, 0.05 * ori0)))
+    tip_margin = np.maximum(np.maximum(1e-4, 0.05 * tip0), 0.01 * tip0.max())
+    ori_margin = np.maximum(np.maximum(1e-6, 0.05 * ori0), 0.01 * ori0.max())
+    excess = np.maximum(tip1 - tip0 - tip_margin, 1e2 * (ori1 - ori0 - ori_margin))
     return float(excess.max())
 
 

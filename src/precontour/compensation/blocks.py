@@ -14,7 +14,9 @@ each *block*: each source line where the samples carry one (a G-code program), e
   uncompensated command's on that draw (:func:`whole_ok`), and in no block does its worst
   draw's max exceed the uncompensated command's worst draw's there by more than the margin:
   :data:`TIP_MARGIN` (0.1 um) or :data:`ORIENTATION_MARGIN` (1 urad), or
-  :data:`RELATIVE_MARGIN` (5 %) of the uncompensated block max where that is larger
+  :data:`RELATIVE_MARGIN` (5 %) of the uncompensated block max, or :data:`PROGRAM_MARGIN`
+  (1 %) of the uncompensated command's largest error over the whole program (its worst
+  draw), whichever is largest
   (:func:`worse_blocks`). Why worst draw against worst draw in a block: at a stop, where
   static friction holds each axis is a coin toss on every draw, for the uncompensated command
   as for any other; draw by draw, a block's comparison is one coin against another (on
@@ -47,6 +49,16 @@ TIP_MARGIN = 1e-4
 ORIENTATION_MARGIN = 1e-6
 #: Relative margin (of the uncompensated block max) where it is larger than the absolute one.
 RELATIVE_MARGIN = 0.05
+#: Margin as a fraction of the uncompensated command's largest error over the whole program
+#: (worst draw), where that is larger. Why: a fallback blends one command into another over
+#: 0.1 s, and on a curved path the blend's contour error does not lie between the two
+#: commands' (a leading command blended into a lagging one leaves the path); with the block
+#: margins alone, on `circle` / `pid-low` (uncompensated 154 um) the linear pass was worse by
+#: 4 urad of 26 at the start, every fallback's blend made its neighbours worse by 5-12 %
+#: of their 5-16 um, and learning kept the uncompensated command everywhere (0 % removed
+#: against 99.3 % with this margin, measured). 1 % of the part's uncompensated error is
+#: below what a machinist sees and far below what the compensation removes.
+PROGRAM_MARGIN = 0.01
 #: Weight of the orientation error against the tip error in a score, mm/rad (about a tool
 #: length, as in the linear passes' score).
 ORIENTATION_WEIGHT = 100.0
@@ -191,8 +203,10 @@ def worse_blocks(judged: Judgement, reference: Judgement) -> np.ndarray:
         return np.ones(reference.tip_max.shape[1], dtype=bool)
     tip_ref = reference.tip_max.max(axis=0)
     ori_ref = reference.orientation_max.max(axis=0)
-    tip_bound = tip_ref + np.maximum(TIP_MARGIN, RELATIVE_MARGIN * tip_ref)
-    ori_bound = ori_ref + np.maximum(ORIENTATION_MARGIN, RELATIVE_MARGIN * ori_ref)
+    tip_bound = tip_ref + np.maximum(np.maximum(TIP_MARGIN, RELATIVE_MARGIN * tip_ref),
+                                     PROGRAM_MARGIN * tip_ref.max())
+    ori_bound = ori_ref + np.maximum(np.maximum(ORIENTATION_MARGIN, RELATIVE_MARGIN * ori_ref),
+                                     PROGRAM_MARGIN * ori_ref.max())
     return (judged.tip_max.max(axis=0) > tip_bound) | \
         (judged.orientation_max.max(axis=0) > ori_bound)
 
