@@ -14,9 +14,9 @@ each *block*: each source line where the samples carry one (a G-code program), e
   uncompensated command's on that draw (:func:`whole_ok`), and in no block does its worst
   draw's max exceed the uncompensated command's worst draw's there by more than the margin:
   :data:`TIP_MARGIN` (0.1 um) or :data:`ORIENTATION_MARGIN` (1 urad), or
-  :data:`RELATIVE_MARGIN` (5 %) of the uncompensated block max, or :data:`PROGRAM_MARGIN`
-  (1 %) of the uncompensated command's largest error over the whole program (its worst
-  draw), whichever is largest
+  :data:`RELATIVE_MARGIN` (5 %) of the uncompensated block max where that is larger (and,
+  as a second chance before the uncompensated command is returned, :data:`PROGRAM_MARGIN`:
+  1 % of the uncompensated command's largest error over the whole program, its worst draw)
   (:func:`worse_blocks`). Why worst draw against worst draw in a block: at a stop, where
   static friction holds each axis is a coin toss on every draw, for the uncompensated command
   as for any other; draw by draw, a block's comparison is one coin against another (on
@@ -49,8 +49,10 @@ TIP_MARGIN = 1e-4
 ORIENTATION_MARGIN = 1e-6
 #: Relative margin (of the uncompensated block max) where it is larger than the absolute one.
 RELATIVE_MARGIN = 0.05
-#: Margin as a fraction of the uncompensated command's largest error over the whole program
-#: (worst draw), where that is larger. Why: a fallback blends one command into another over
+#: Second-chance margin, as a fraction of the uncompensated command's largest error over the
+#: whole program (worst draw), where that is larger: used only when no command is nowhere
+#: worse within the block margins, before the uncompensated command is returned. Why: a
+#: fallback blends one command into another over
 #: 0.1 s, and on a curved path the blend's contour error does not lie between the two
 #: commands' (a leading command blended into a lagging one leaves the path); with the block
 #: margins alone, on `circle` / `pid-low` (uncompensated 154 um) the linear pass was worse by
@@ -195,7 +197,8 @@ def whole_ok(judged: Judgement, reference: Judgement) -> bool:
                for key in SUMMARY_KEYS)
 
 
-def worse_blocks(judged: Judgement, reference: Judgement) -> np.ndarray:
+def worse_blocks(judged: Judgement, reference: Judgement, program_margin: float = 0.0
+                 ) -> np.ndarray:
     """Mask of shape (K,): blocks whose max error on the worst draw exceeds the reference's
     on its worst draw by more than the margin (tip or orientation; see the module
     docstring)."""
@@ -204,23 +207,26 @@ def worse_blocks(judged: Judgement, reference: Judgement) -> np.ndarray:
     tip_ref = reference.tip_max.max(axis=0)
     ori_ref = reference.orientation_max.max(axis=0)
     tip_bound = tip_ref + np.maximum(np.maximum(TIP_MARGIN, RELATIVE_MARGIN * tip_ref),
-                                     PROGRAM_MARGIN * tip_ref.max())
+                                     program_margin * tip_ref.max())
     ori_bound = ori_ref + np.maximum(np.maximum(ORIENTATION_MARGIN, RELATIVE_MARGIN * ori_ref),
-                                     PROGRAM_MARGIN * ori_ref.max())
+                                     program_margin * ori_ref.max())
     return (judged.tip_max.max(axis=0) > tip_bound) | \
         (judged.orientation_max.max(axis=0) > ori_bound)
 
 
-def nowhere_worse(judged: Judgement, reference: Judgement) -> bool:
+def nowhere_worse(judged: Judgement, reference: Judgement, program_margin: float = 0.0
+                  ) -> bool:
     """:func:`whole_ok` and no :func:`worse_blocks`."""
-    return whole_ok(judged, reference) and not worse_blocks(judged, reference).any()
+    return whole_ok(judged, reference) and \
+        not worse_blocks(judged, reference, program_margin).any()
 
 
-def _offending_blocks(judged: Judgement, reference: Judgement) -> np.ndarray:
+def _offending_blocks(judged: Judgement, reference: Judgement, program_margin: float = 0.0
+                      ) -> np.ndarray:
     """The blocks to fall back in: those worse beyond the margin, and where a whole max or
     mean exceeds the reference's on a draw, the blocks that make it so (the block holding
     that max; the blocks whose mean exceeds the reference's)."""
-    bad = worse_blocks(judged, reference)
+    bad = worse_blocks(judged, reference, program_margin)
     for d, (s, r) in enumerate(zip(judged.summaries, reference.summaries)):
         for key, blocks_max, blocks_mean, ref_mean in (
                 ("tip", judged.tip_max, judged.tip_mean, reference.tip_mean),
@@ -309,7 +315,7 @@ def fall_back(q: np.ndarray, judged: Judgement, q_reference: np.ndarray,
               fallbacks: Sequence[tuple[str, np.ndarray]] = (),
               admissible: Callable[[np.ndarray], bool] | None = None,
               line: np.ndarray | None = None, t0: float = 0.0,
-              rounds: int = FALLBACK_ROUNDS) -> tuple[np.ndarray, Judgement, Fallback]:
+              rounds: int = FALLBACK_ROUNDS, program_margin: float = 0.0) -> tuple[np.ndarray, Judgement, Fallback]:
     """``q`` (judged ``judged``) made nowhere worse than ``q_reference`` (judged
     ``reference``), block by block (see the module docstring).
 
@@ -320,16 +326,17 @@ def fall_back(q: np.ndarray, judged: Judgement, q_reference: np.ndarray,
     Each option is a C2 blend (:func:`~.blend.taper_corrections`) of the command into it over
     the block. A blended command that ``admissible`` refuses moves every fallen-back block on
     by one option before it is judged. After ``rounds`` judgements that still hurt, the planned
-    command is taken everywhere.
+    command is taken everywhere. ``program_margin``: the second-chance margin
+    (:data:`PROGRAM_MARGIN`) added to the block margins, 0 for the block margins alone.
 
     Returns the command, its judgement and a :class:`Fallback` report.
     """
-    if nowhere_worse(judged, reference):
+    if nowhere_worse(judged, reference, program_margin):
         return q, judged, Fallback()
     n = q.shape[0]
     ends = np.concatenate([starts[1:], [n]])
     n_blocks = starts.size
-    alternative_ok = [(name, q_alt, ~worse_blocks(j, reference))
+    alternative_ok = [(name, q_alt, ~worse_blocks(j, reference, program_margin))
                       for name, q_alt, j in alternatives if whole_ok(j, reference)]
     # the options common to every block, mildest first: (name, command, hold, severity)
     common = [(name, q_fb, TAPER_HOLD, 1 + k) for k, (name, q_fb) in enumerate(fallbacks)]
@@ -368,7 +375,7 @@ def fall_back(q: np.ndarray, judged: Judgement, q_reference: np.ndarray,
     current = judged
     used = 0
     while used < rounds:
-        bad = _offending_blocks(current, reference)
+        bad = _offending_blocks(current, reference, program_margin)
         if any(exhausted(int(b)) for b in np.flatnonzero(bad)):
             break
         for b in np.flatnonzero(bad):
@@ -385,7 +392,7 @@ def fall_back(q: np.ndarray, judged: Judgement, q_reference: np.ndarray,
             break
         current = judge_command(q_try)
         used += 1
-        if nowhere_worse(current, reference):
+        if nowhere_worse(current, reference, program_margin):
             blocks = tuple(
                 FallbackBlock(start=t0 + starts[b] * ts, stop=t0 + (ends[b] - 1) * ts,
                               line=None if line is None else int(line[starts[b]]),
