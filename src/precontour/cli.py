@@ -431,9 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "trivkins otherwise) and for the halstreamer stream, and a headless "
                     "display. An existing folder is replaced only if it holds such a "
                     "configuration.")
-    lcnc.add_argument("--machine", required=True,
-                      help="built-in machine name or machine TOML file (`precontour machines` "
-                           "lists the built-in ones)")
+    _add_machine_options(lcnc, required=True, controller=None)
     lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                       help="configuration folder")
     lcnc.set_defaults(run=run_linuxcnc_config)
@@ -520,7 +518,7 @@ def _add_tol_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _tolerance(text: str):
-    from .toolpath.writers import axis_tolerances
+    from .toolpath.writers import gcode_tolerances
 
     parts = text.split(",")
     if len(parts) > 2:
@@ -529,7 +527,7 @@ def _tolerance(text: str):
     linear = values[0]
     rotary = values[1] if len(values) == 2 else GCODE_TOL_ROTARY
     try:
-        return axis_tolerances(linear, rotary)
+        return gcode_tolerances(linear, rotary)
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

@@ -36,7 +36,7 @@ from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
 from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
-from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
+from .toolpath.writers import (GcodeProgram, ProgramInfo, gcode_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
 from .trajectory.program import check_program_samples, program_trajectory
@@ -378,7 +378,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
 
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
     check_run_outputs(outputs, inputs)
-    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
@@ -585,7 +585,7 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     inputs = [commands_path] + ([machine] if Path(str(machine)).exists() else [])
     suffixes = {"gcode": GCODE_SUFFIXES, "halstreamer": None}.get(format, (f".{format}",))
     check_output_path(output, inputs=inputs, suffixes=suffixes)
-    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     traj = read_trajectory(commands_path)
     if format not in ("gcode", "halstreamer"):
         write_columns(output, trajectory_columns(traj), inputs=inputs)
