@@ -350,8 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="RAD", help="half travel of A, C around the start (default "
                                             f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
                                             "an axis's travel; one given must fit)")
-    excite.add_argument("--axes", default="XYZAC", metavar="AXES",
-                        help="axes to excite (default XYZAC)")
+    excite.add_argument("--axes", default=None, metavar="AXES",
+                        help="axes to excite, by the machine's letters (default all five: "
+                             "XYZAC, or XYZBC on a B-C machine)")
     excite.set_defaults(run=run_excite)
 
     export = commands.add_parser(
@@ -666,7 +667,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
     if toolpath is not None:
         traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
                                    max_samples=args.max_samples)
-    write_columns(args.output, trajectory_columns(traj), inputs=inputs)
+    write_columns(args.output, trajectory_columns(traj, machine.axis_names), inputs=inputs)
     print(summarize(traj, machine).format())
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
@@ -706,7 +707,8 @@ def run_compensate(args: argparse.Namespace) -> int:
                   f"down to {100 * args.min_speed:g} % of the speed or more could not keep "
                   "the limits: " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
                                              for a, b in comp.left_out[:10]))
-    write_columns(args.output, trajectory_columns(comp.commands), inputs=inputs)
+    write_columns(args.output, trajectory_columns(comp.commands, servo.axis_names),
+                  inputs=inputs)
     print(f"{args.method} pre-compensation on {servo.machine.name}, controller "
           f"{args.controller}: {comp.passes} pass(es) kept")
     print("predicted before: " + _contour_line(comp.before))
@@ -740,7 +742,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     machine.controller(args.controller)
-    commands = read_trajectory(args.commands)
+    commands = read_trajectory(args.commands, axis_names=machine.axis_names)
     if args.mode == "discrete" and not machine.at_servo_period(commands.ts):
         raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s (discrete mode samples at the "
@@ -758,7 +760,7 @@ def run_simulate(args: argparse.Namespace) -> int:
                           friction=args.friction == "on", ff_friction=args.ff_friction == "on",
                           inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
     columns = {"t": result.t}
-    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
+    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = None
     if reference_traj.has_reference:
         contour = contour_errors(ReferencePath.from_trajectory(reference_traj), result.q_act,
@@ -891,18 +893,26 @@ def run_excite(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
-    axes = tuple(dict.fromkeys(args.axes.upper()))
-    unknown = [a for a in axes if a not in AXES]
-    if unknown or not axes:
-        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
-                         field="axes")
+    letters = tuple(machine.axis_names)
+    given_letters = tuple(dict.fromkeys((args.axes or "".join(letters)).upper()))
+    if "A" in given_letters and "A" not in letters and letters[3] == "B":
+        from .errors import notice
+
+        notice("--axes: A read as the B axis of this B-C machine (the old spelling; write B)")
+        given_letters = tuple(dict.fromkeys("B" if a == "A" else a for a in given_letters))
+    unknown = [a for a in given_letters if a not in letters]
+    if unknown or not given_letters:
+        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of "
+                         f"{''.join(letters)}", field="axes")
+    # the library names the q slots X Y Z A C on every machine
+    axes = tuple(AXES[letters.index(a)] for a in given_letters)
     given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
     travel = {a: value for a, value in given.items() if value is not None}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
     write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
-          f"axes {''.join(axes)} one at a time then together, within {args.safety:g} of the "
-          "drive limits")
+          f"axes {''.join(given_letters)} one at a time then together, within {args.safety:g} "
+          "of the drive limits")
     print(f"wrote {args.output} in {time.perf_counter() - start:.2f} s")
     return 0
 

@@ -594,7 +594,8 @@ def write_run_outputs(result: RunResult, outputs: RunOutputs,
             # errors name can be looked up in it
             table = commands if result.limited.line is None else replace(
                 commands, line=result.limited.line)
-            written.append(write_columns(outputs.commands, trajectory_columns(table),
+            written.append(write_columns(outputs.commands,
+                                         trajectory_columns(table, result.machine.axis_names),
                                          inputs=inputs))
     return written
 
@@ -641,11 +642,11 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     suffixes = {"gcode": GCODE_SUFFIXES, "halstreamer": None}.get(format, (f".{format}",))
     check_output_path(output, inputs=inputs, suffixes=suffixes)
     tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    traj = read_trajectory(commands_path)
-    if format not in ("gcode", "halstreamer"):
-        write_columns(output, trajectory_columns(traj), inputs=inputs)
-        return ExportResult(output, format, traj.n_samples, None)
     machine_obj = load_machine(machine)
+    traj = read_trajectory(commands_path, axis_names=machine_obj.axis_names)
+    if format not in ("gcode", "halstreamer"):
+        write_columns(output, trajectory_columns(traj, machine_obj.axis_names), inputs=inputs)
+        return ExportResult(output, format, traj.n_samples, None)
     if controller:
         machine_obj.controller(controller)  # an unknown name is an error, as elsewhere
     limits = AxisLimits.from_machine(machine_obj)

@@ -668,7 +668,7 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
         traj, source = trajectory, "trajectory"
     else:
         source = str(trajectory)
-        traj = read_trajectory(trajectory)
+        traj = read_trajectory(trajectory, axis_names=machine.axis_names)
     if not traj.has_reference:
         raise InputError("the comparison needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour "
