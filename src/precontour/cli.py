@@ -599,7 +599,6 @@ def run_predict(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .compensation.pieces import predict_program
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
                          write_columns)
@@ -618,7 +617,7 @@ def run_predict(args: argparse.Namespace) -> int:
                                      tol_linear=args.tol_linear, tol_rotary=args.tol_rotary)
     e = prediction.e
     columns = {"t": traj.t}
-    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
+    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = prediction.contour
     if contour is not None:
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
