@@ -729,7 +729,6 @@ def run_compensate(args: argparse.Namespace) -> int:
 def run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .prediction.contour import ReferencePath, contour_errors
     from .simulation.virtual_machine import simulate
