@@ -525,7 +525,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
                 sliding: str | None = "smc", ppi: str | None = "p-pi-high",
                 pids: Sequence[str] = ("pid-high", "pid-low"),
                 model_errors: Sequence[float] = DEFAULT_MODEL_ERRORS,
-                progress: Progress | None = None) -> CompareResult:
+                progress: Progress | None = None) -> tuple[CompareResult, StepCounter]:
     """Compare controllers and compensation methods on the realistic virtual machine (the
     paper's Figs. 11-16 and the claims' measured answers); the report folder is written by
     :func:`precontour.reports.compare_report.run_compare`.
