@@ -20,7 +20,8 @@ from precontour.trajectory.generate import generate_trajectory
 from precontour.workflow import check_on_virtual_machine, compensate_keeping_limits
 
 
-@pytest.mark.parametrize("machine_name", ["head-table-bc", "linuxcnc-bridgemill", "head-table-ac"])
+@pytest.mark.parametrize("machine_name", ["head-table-bc", "linuxcnc-bridgemill", "head-table-ac",
+                                          "linuxcnc-xyzab-tdr"])
 def test_paper_path_compensated_on_the_head_families(machine_name):
     machine = load_machine(machine_name)
     reductions = []
