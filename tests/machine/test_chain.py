@@ -60,7 +60,11 @@ def test_preset_chain_has_the_types_jacobian_and_path_inverse(kin):
     np.testing.assert_allclose(O2, O, atol=2 * POLE_TOLERANCE + 1e-15)
 
 
-@pytest.mark.parametrize("kin", list(FAMILIES.values()), ids=list(FAMILIES))
+#: The families with a chain preset (the A-B table has two tilts, which the chain refuses).
+CHAINED = {name: kin for name, kin in FAMILIES.items() if not name.startswith("xyzab-tdr")}
+
+
+@pytest.mark.parametrize("kin", list(CHAINED.values()), ids=list(CHAINED))
 @settings(max_examples=60, deadline=None)
 @given(q=poses)
 def test_chain_equals_the_independent_chain(kin, q):

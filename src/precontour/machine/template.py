@@ -80,6 +80,21 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("c_direction", "", "+1 or -1, the sense of rotation of C: +1 is 5axiskins's "
                             "(right-handed about +z)"),
     ),
+    "xyzab-tdr": (
+        ("x_rot_point", "mm", "rotation point, where the B axis meets the A axis at zero "
+                              "offsets, in the machine frame, x (HAL pin "
+                              "xyzab_tdr_kins.x-rot-point)"),
+        ("y_rot_point", "mm", "... y (HAL pin xyzab_tdr_kins.y-rot-point)"),
+        ("z_rot_point", "mm", "... z (HAL pin xyzab_tdr_kins.z-rot-point)"),
+        ("x_offset", "mm", "A table face centre relative to the rotation point, x: along the A "
+                           "axis, so without effect on the kinematics (HAL pin "
+                           "xyzab_tdr_kins.x-offset)"),
+        ("z_offset", "mm", "A axis relative to the rotation point, z (HAL pin "
+                           "xyzab_tdr_kins.z-offset)"),
+        ("tool_offset", "mm", "tool length, motion.tooloffset.z (HAL pin "
+                              "xyzab_tdr_kins.tool-offset-z); A and B have no direction "
+                              "pins: both turn the part left-handed about +x, +y"),
+    ),
     "chain": (
         ("tool_offset", "mm", "tool length: at the zero pose the tip is this far below the "
                               "spindle nose, the tool along +z"),
