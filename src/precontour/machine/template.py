@@ -103,13 +103,17 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("workpiece_origin", "mm", "optional: origin of the workpiece frame in the machine "
                                    "frame at the zero pose; it turns with the table's axes "
                                    "(default [0, 0, 0])"),
+        ("carrier", "", "two tilts A and B (no C) on the same side only: \"A\" or \"B\", the "
+                        "one that carries the other (on a table nearer the base, on a head "
+                        "nearer the ram)"),
     ),
 }
-#: Keys of a chain's rotary axis tables, ``[kinematics.A]`` (or B) and ``[kinematics.C]``.
+#: Keys of a chain's rotary axis tables, ``[kinematics.A]`` (or B) and ``[kinematics.C]``, or
+#: ``[kinematics.A]`` and ``[kinematics.B]``.
 CHAIN_AXIS_KEYS: tuple[tuple[str, str, str], ...] = (
     ("carried_by", "", "table (the axis turns the part) or head (it turns the tool); on a "
                        "table C carries the part and the tilt carries C, on a head C carries "
-                       "the tilt"),
+                       "the tilt (two tilts: see carrier)"),
     ("direction", "", "unit vector of the axis, +-x for A, +-y for B, +-z for C: the command "
                       "turns right-handed about it"),
     ("point", "mm", "a point of the axis line at the zero pose: in the machine frame on a "
