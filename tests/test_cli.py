@@ -304,7 +304,8 @@ def test_run_and_export_have_no_default_machine(argv, missing, tmp_path, capsys,
     assert err.startswith(f"precontour {argv[0]}: error: the following arguments are required: "
                           f"{missing}; `precontour machines` lists the built-in machines "
                           "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt, head-table-bc, "
-                          "linuxcnc-bridgemill, head-table-ac) and their controllers"), err
+                          "linuxcnc-bridgemill, head-table-ac, linuxcnc-xyzab-tdr) and their "
+                          "controllers"), err
     assert list(tmp_path.iterdir()) == []
 
 
