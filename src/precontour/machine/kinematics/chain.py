@@ -162,7 +162,8 @@ class ChainKinematics(_ChainMotion, TrunnionKinematics):
         check_chain(self.tilt, self.turn)
 
     @classmethod
-    def from_table(cls, table) -> "ChainKinematics":
+    def from_table(cls, table):
+        """The machine file's ``chain`` (a :class:`TwoTiltChain` where its axes are A and B)."""
         return chain_from_table(table)
 
     # ---------------------------------------------------------------- the trunnion hooks
