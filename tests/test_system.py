@@ -104,3 +104,22 @@ def test_learning_is_skipped_with_a_notice_where_it_cannot_run(servo, paper, cap
     comp = compensate(servo, coarse, learn=1)
     assert comp.learning is None
     assert "no learning: the trajectory's sample period 0.002 s" in caplog.text
+
+
+def test_results_plot_themselves(servo, paper):
+    """Compensation.plot() and plot_contour_errors draw what they were given: each line's
+    data is the errors in um / mrad, on the reference's times."""
+    from precontour import plot_contour_errors
+
+    comp = compensate(servo, paper, limits=False)
+    fig = comp.plot()
+    tip, ori = fig.axes
+    lines = tip.get_lines()
+    assert [line.get_label().split(":")[0] for line in lines] == ["uncompensated", "compensated"]
+    np.testing.assert_array_equal(lines[1].get_ydata(), 1e3 * comp.after.tip)
+    np.testing.assert_array_equal(ori.get_lines()[0].get_xdata(), comp.reference.t)
+    fig = plot_contour_errors(servo, paper, {"uncompensated": simulate(servo, paper),
+                                             "compensated": simulate(servo, comp)})
+    simulated = contour_errors(servo, paper, simulate(servo, comp))
+    np.testing.assert_array_equal(fig.axes[1].get_lines()[1].get_ydata(),
+                                  1e3 * simulated.orientation)

@@ -34,7 +34,8 @@ __version__ = "0.1.0"
 #: so that the command line starts without the numerical stack (``precontour --help``).
 _PUBLIC = {
     "Compensation": "system", "Servo": "system", "compensate": "system",
-    "contour_errors": "system", "load_servo": "system", "predict": "system",
+    "contour_errors": "system", "load_servo": "system", "plot_contour_errors": "system",
+    "predict": "system",
     "simulate": "system",
     "InputError": "errors", "MachineFileError": "errors", "PrecontourError": "errors",
     "ProgramError": "errors", "ToolPathError": "errors",
@@ -56,8 +57,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and editors
     from .machine import Machine, load_machine
     from .prediction import ContourErrors, ReferencePath
     from .simulation import SimulationResult
-    from .system import (Compensation, Servo, compensate, contour_errors, load_servo, predict,
-                         simulate)
+    from .system import (Compensation, Servo, compensate, contour_errors, load_servo,
+                         plot_contour_errors, predict, simulate)
     from .tables import read_trajectory, write_columns
     from .toolpath import Program, ToolPath, read_program, read_toolpath
     from .trajectory import Trajectory, builtin_path, generate_trajectory, program_trajectory

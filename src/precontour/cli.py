@@ -350,8 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="RAD", help="half travel of A, C around the start (default "
                                             f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
                                             "an axis's travel; one given must fit)")
-    excite.add_argument("--axes", default="XYZAC", metavar="AXES",
-                        help="axes to excite (default XYZAC)")
+    excite.add_argument("--axes", default=None, metavar="AXES",
+                        help="axes to excite, by the machine's letters (default all five: "
+                             "XYZAC, or XYZBC on a B-C machine)")
     excite.set_defaults(run=run_excite)
 
     export = commands.add_parser(
@@ -431,9 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "trivkins otherwise) and for the halstreamer stream, and a headless "
                     "display. An existing folder is replaced only if it holds such a "
                     "configuration.")
-    lcnc.add_argument("--machine", required=True,
-                      help="built-in machine name or machine TOML file (`precontour machines` "
-                           "lists the built-in ones)")
+    _add_machine_options(lcnc, required=True, controller=None)
     lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                       help="configuration folder")
     lcnc.set_defaults(run=run_linuxcnc_config)
@@ -520,7 +519,7 @@ def _add_tol_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _tolerance(text: str):
-    from .toolpath.writers import axis_tolerances
+    from .toolpath.writers import gcode_tolerances
 
     parts = text.split(",")
     if len(parts) > 2:
@@ -529,7 +528,7 @@ def _tolerance(text: str):
     linear = values[0]
     rotary = values[1] if len(values) == 2 else GCODE_TOL_ROTARY
     try:
-        return axis_tolerances(linear, rotary)
+        return gcode_tolerances(linear, rotary)
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
@@ -600,7 +599,6 @@ def run_predict(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .compensation.pieces import predict_program
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
                          write_columns)
@@ -619,7 +617,7 @@ def run_predict(args: argparse.Namespace) -> int:
                                      tol_linear=args.tol_linear, tol_rotary=args.tol_rotary)
     e = prediction.e
     columns = {"t": traj.t}
-    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
+    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = prediction.contour
     if contour is not None:
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
@@ -668,7 +666,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
     if toolpath is not None:
         traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
                                    max_samples=args.max_samples)
-    write_columns(args.output, trajectory_columns(traj), inputs=inputs)
+    write_columns(args.output, trajectory_columns(traj, machine.axis_names), inputs=inputs)
     print(summarize(traj, machine).format())
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
@@ -708,7 +706,8 @@ def run_compensate(args: argparse.Namespace) -> int:
                   f"down to {100 * args.min_speed:g} % of the speed or more could not keep "
                   "the limits: " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
                                              for a, b in comp.left_out[:10]))
-    write_columns(args.output, trajectory_columns(comp.commands), inputs=inputs)
+    write_columns(args.output, trajectory_columns(comp.commands, servo.axis_names),
+                  inputs=inputs)
     print(f"{args.method} pre-compensation on {servo.machine.name}, controller "
           f"{args.controller}: {comp.passes} pass(es) kept")
     print("predicted before: " + _contour_line(comp.before))
@@ -730,7 +729,6 @@ def run_compensate(args: argparse.Namespace) -> int:
 def run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .prediction.contour import ReferencePath, contour_errors
     from .simulation.virtual_machine import simulate
@@ -742,7 +740,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     machine.controller(args.controller)
-    commands = read_trajectory(args.commands)
+    commands = read_trajectory(args.commands, axis_names=machine.axis_names)
     if args.mode == "discrete" and not machine.at_servo_period(commands.ts):
         raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s (discrete mode samples at the "
@@ -760,7 +758,7 @@ def run_simulate(args: argparse.Namespace) -> int:
                           friction=args.friction == "on", ff_friction=args.ff_friction == "on",
                           inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
     columns = {"t": result.t}
-    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
+    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = None
     if reference_traj.has_reference:
         contour = contour_errors(ReferencePath.from_trajectory(reference_traj), result.q_act,
@@ -893,18 +891,26 @@ def run_excite(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
-    axes = tuple(dict.fromkeys(args.axes.upper()))
-    unknown = [a for a in axes if a not in AXES]
-    if unknown or not axes:
-        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
-                         field="axes")
+    letters = tuple(machine.axis_names)
+    given_letters = tuple(dict.fromkeys((args.axes or "".join(letters)).upper()))
+    if "A" in given_letters and "A" not in letters and letters[3] == "B":
+        from .errors import notice
+
+        notice("--axes: A read as the B axis of this B-C machine (the old spelling; write B)")
+        given_letters = tuple(dict.fromkeys("B" if a == "A" else a for a in given_letters))
+    unknown = [a for a in given_letters if a not in letters]
+    if unknown or not given_letters:
+        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of "
+                         f"{''.join(letters)}", field="axes")
+    # the library names the q slots X Y Z A C on every machine
+    axes = tuple(AXES[letters.index(a)] for a in given_letters)
     given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
     travel = {a: value for a, value in given.items() if value is not None}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
     write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
-          f"axes {''.join(axes)} one at a time then together, within {args.safety:g} of the "
-          "drive limits")
+          f"axes {''.join(given_letters)} one at a time then together, within {args.safety:g} "
+          "of the drive limits")
     print(f"wrote {args.output} in {time.perf_counter() - start:.2f} s")
     return 0
 

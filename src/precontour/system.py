@@ -34,7 +34,7 @@ from .trajectory.retime import Slowdown
 from .trajectory.sampled import Trajectory
 
 __all__ = ["Servo", "load_servo", "predict", "compensate", "simulate", "contour_errors",
-           "Compensation", "REALISM", "learning_controller"]
+           "Compensation", "REALISM", "learning_controller", "plot_contour_errors"]
 
 #: The virtual machine's settings by name (``simulate(..., realism=...)``): ``realistic`` is
 #: the discrete controller at the servo period with Stribeck friction and its feed-forward;
@@ -142,6 +142,15 @@ class Compensation:
     @property
     def added_time(self) -> float:
         return float(sum(s.added for s in self.slowdowns))
+
+    def plot(self, axes=None):
+        """The predicted contour errors before and after against time, tip and orientation
+        (:func:`precontour.reports.plots.plot_contour_errors`); returns the figure."""
+        from .reports.plots import plot_contour_errors
+
+        return plot_contour_errors(self.reference.t, {"uncompensated": self.before,
+                                                      "compensated": self.after},
+                                   title="predicted contour errors", axes=axes)
 
 
 def predict(servo: Servo, trajectory: Trajectory):
@@ -269,6 +278,15 @@ def simulate(servo: Servo, commands, *, realism: str = "realistic", **scatter):
                          field="realism")
     t, q = _time_and_commands(servo, commands)
     return _simulate(t, q, servo.machine, servo.controller, **REALISM[realism], **scatter)
+
+
+def plot_contour_errors(servo: Servo, reference, actuals: dict, *, axes=None):
+    """Contour errors of several actual motions (label -> SimulationResult or axis positions)
+    against ``reference``, tip and orientation against time, in one figure; returns it."""
+    from .reports.plots import plot_contour_errors as plot
+
+    return plot(np.asarray(reference.t), {label: contour_errors(servo, reference, actual)
+                                for label, actual in actuals.items()}, axes=axes)
 
 
 def contour_errors(servo: Servo, reference, actual) -> ContourErrors:

@@ -71,8 +71,8 @@ class Machine:
     @property
     def axis_names(self) -> tuple[str, ...]:
         """The five axis letters in q order: ("X", "Y", "Z", "A", "C"), or B in slot 3 on a
-        B-C machine, or ("X", "Y", "Z", "A", "B") on an A-B table (for G-code; trajectory
-        columns stay X,Y,Z,A,C)."""
+        B-C machine, or ("X", "Y", "Z", "A", "B") on an A-B table: the letters of G-code and
+        of the axis columns of trajectory and command files."""
         return tuple(getattr(self.kinematics, "axis_names", AXES))
 
     def drive(self, axis: str) -> Drive:

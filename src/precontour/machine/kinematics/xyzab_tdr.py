@@ -10,8 +10,8 @@ B = +-90 deg, where the tool is parallel to the A axis and A orients nothing.
 
 The axis vector keeps its five slots, q = [X, Y, Z, A, B]: slot 3 holds A, slot 4 holds B (the
 machine file describes [drives.A] and [drives.B], controllers give A = {...} and B = {...}, and
-G-code has A and B words); trajectory files keep the column names ``X,Y,Z,A,C``, so on an A-B
-machine column ``C`` holds B. Machine-file keys (mm) and the LinuxCNC HAL pins they equal:
+G-code has A and B words, trajectory and command files have the columns ``X,Y,Z,A,B``).
+Machine-file keys (mm) and the LinuxCNC HAL pins they equal:
 
 ================= ==================================== ========================================
 key               LinuxCNC pin                         meaning
