@@ -19,24 +19,24 @@ from precontour.machine.kinematics.chain import _turn_about, chain_of  # noqa: E
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "chains"
 MACHINES = ("zhang2013", "linuxcnc-xyzbc-trt", "head-table-bc", "linuxcnc-bridgemill",
-            "head-table-ac")
-#: The pose drawn: linear axes (mm), tilt and C (rad).
+            "head-table-ac", "linuxcnc-xyzab-tdr")
+#: The pose drawn: linear axes (mm), the rotary axes in slots 3 and 4 (rad).
 POSE = np.array([0.0, 0.0, 0.0, np.radians(35.0), np.radians(50.0)])
+#: Where the part is drawn, in the workpiece frame (default its origin): on the A-B table the
+#: A table's face centre (rotation point + offsets), where LinuxCNC's demo puts its G54.
+PART_CENTRE = {"linuxcnc-xyzab-tdr": (-70.0, -50.0, -110.0)}
 AXIS_HALF = 120.0   # mm of each axis line drawn either side of its point
 PART = 60.0         # mm, half side of the square drawn on the part
 
 
 def _placed(chain, rotary, axis, point, direction=False):
-    """A point (or direction) of ``axis``'s own link moved by the axes carrying it."""
+    """A point (or direction) of ``axis``'s own link moved by the axes carrying it: on a head
+    the head axes nearer the ram, on a table the table axes nearer the base."""
     x = np.asarray(point, dtype=float)
-    if axis.side == "head":
-        # the head axes nearer the ram carry it: on a head-head machine C carries the tilt
-        if axis is chain.tilt and chain.turn.side == "head":
-            x = _turn_about(x, chain.turn, rotary[1], direction=direction)
-        return x
-    # on a table-table machine the tilt carries C
-    if axis is chain.turn and chain.tilt.side == "table":
-        x = _turn_about(x, chain.tilt, rotary[0], direction=direction)
+    links = chain._head_axes() if axis.side == "head" else chain._table_axes()
+    index = [a for a, _ in links].index(axis)
+    for carrier, slot in links[index + 1:]:
+        x = _turn_about(x, carrier, rotary[slot - 3], direction=direction)
     return x
 
 
@@ -44,7 +44,8 @@ def draw(name: str) -> Path:
     machine = load_machine(name)
     chain = chain_of(machine.kinematics)
     q = POSE.copy()
-    q[:3] = chain.linear_axes(np.zeros(3), q[3], q[4])   # the tip at the part's origin
+    centre = np.asarray(PART_CENTRE.get(name, (0.0, 0.0, 0.0)))
+    q[:3] = chain.linear_axes(centre, q[3], q[4])   # the tip at the part's centre
     rotary = q[3:]
     home = q[:3] * np.asarray(chain.linear_senses)   # the spindle nose at the zero pose
     tip = home + chain._tool(rotary, False)
@@ -52,7 +53,7 @@ def draw(name: str) -> Path:
     fig = plt.figure(figsize=(7, 6.5))
     ax = fig.add_subplot(projection="3d")
     seen = [tip, nose, home]   # what the view must hold
-    for axis, colour in ((chain.tilt, "tab:red"), (chain.turn, "tab:blue")):
+    for (axis, _), colour in zip(chain.rotary_axes, ("tab:red", "tab:blue")):
         point = _placed(chain, rotary, axis, axis.point)
         direction = _placed(chain, rotary, axis, axis.direction, direction=True)
         if axis.side == "head":
@@ -63,16 +64,18 @@ def draw(name: str) -> Path:
                 label=f"{axis.letter} axis ({axis.side}), direction {list(axis.direction)}")
         ax.scatter(*point, color=colour, s=20)
         seen.append(point)
-    if chain.tilt.side == "head":   # the spindle's housing: pivot to nose
-        pivot = home + np.asarray(_placed(chain, rotary, chain.tilt, chain.tilt.point))
+    if chain._head_axes():   # the spindle's housing: the pivot nearest the tool to the nose
+        nearest = chain._head_axes()[0][0]
+        pivot = home + np.asarray(_placed(chain, rotary, nearest, nearest.point))
         ax.plot(*np.array([pivot, nose]).T, color="0.6", lw=6, label="head (pivot to nose)")
     ax.plot(*np.array([nose, tip]).T, color="k", lw=3,
             label=f"tool ({chain.tool_offset:g} mm, nose to tip)")
     ax.scatter(*nose, color="k", s=25, marker="s", label="spindle nose")
-    ax.scatter(*tip, color="tab:orange", s=25, label="tool tip (part origin)")
+    where = "A table face centre" if name in PART_CENTRE else "part origin"
+    ax.scatter(*tip, color="tab:orange", s=25, label=f"tool tip ({where})")
     # the part: a square in the workpiece frame's xy plane, where the table puts it
     square = PART * np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0], [-1, -1, 0]])
-    placed = square + np.asarray(chain.workpiece_origin)
+    placed = square + centre + np.asarray(chain.workpiece_origin)
     for table_axis, slot in chain._table_axes():
         placed = _turn_about(placed, table_axis, rotary[slot - 3])
     ax.plot(*placed.T, color="tab:green", lw=1.5, label="part (workpiece frame xy)")
@@ -84,9 +87,10 @@ def draw(name: str) -> Path:
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
-    tilt = machine.axis_names[3]
-    ax.set_title(f"{name} ({type(machine.kinematics).__name__}): {tilt} = "
-                 f"{np.degrees(q[3]):.0f} deg, C = {np.degrees(q[4]):.0f} deg", fontsize=10)
+    first, second = machine.axis_names[3:]
+    ax.set_title(f"{name} ({type(machine.kinematics).__name__}): {first} = "
+                 f"{np.degrees(q[3]):.0f} deg, {second} = {np.degrees(q[4]):.0f} deg",
+                 fontsize=10)
     ax.legend(loc="upper left", fontsize=7)
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / f"{name}.png"

@@ -304,7 +304,8 @@ def test_run_and_export_have_no_default_machine(argv, missing, tmp_path, capsys,
     assert err.startswith(f"precontour {argv[0]}: error: the following arguments are required: "
                           f"{missing}; `precontour machines` lists the built-in machines "
                           "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt, head-table-bc, "
-                          "linuxcnc-bridgemill, head-table-ac) and their controllers"), err
+                          "linuxcnc-bridgemill, head-table-ac, linuxcnc-xyzab-tdr) and their "
+                          "controllers"), err
     assert list(tmp_path.iterdir()) == []
 
 
@@ -452,3 +453,29 @@ def test_a_bc_machine_reads_and_writes_b(tmp_path, capsys, caplog):
     assert main(["excite", "--machine", "linuxcnc-xyzbc-trt", "--axes", "Q", "-o",
                  str(tmp_path / "e2.csv")]) == 2
     assert "use letters of XYZBC" in capsys.readouterr().err
+
+
+def test_an_ab_machine_reads_and_writes_a_and_b(tmp_path):
+    """On the two-tilt linuxcnc-xyzab-tdr the trajectory, compensate and simulate files have
+    columns A and B and no C; a file with A and B and no C is read as an A-B machine's without
+    the machine too, to the same axes."""
+    import csv
+
+    from precontour.tables import read_trajectory
+
+    traj = tmp_path / "ab.csv"
+    assert main(["trajectory", "--builtin", "paper", "--machine", "linuxcnc-xyzab-tdr",
+                 "-o", str(traj)]) == 0
+    header = next(csv.reader(traj.open()))
+    assert header[:6] == ["t", "X", "Y", "Z", "A", "B"] and "C" not in header
+    comp = tmp_path / "comp.csv"
+    assert main(["compensate", str(traj), "--machine", "linuxcnc-xyzab-tdr", "--controller",
+                 "pid-high", "--learn", "0", "-o", str(comp)]) == 0
+    assert next(csv.reader(comp.open()))[4:6] == ["A", "B"]
+    sim = tmp_path / "sim.csv"
+    assert main(["simulate", str(comp), "--machine", "linuxcnc-xyzab-tdr", "--controller",
+                 "pid-high", "-o", str(sim)]) == 0
+    assert next(csv.reader(sim.open()))[4:6] == ["A", "B"]
+    with_machine = read_trajectory(traj, axis_names=("X", "Y", "Z", "A", "B"))
+    np.testing.assert_array_equal(read_trajectory(traj).q, with_machine.q)
+    assert np.ptp(with_machine.q[:, 4]) > 0.5        # B moves (it is no C column in disguise)

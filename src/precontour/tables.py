@@ -29,7 +29,8 @@ from .trajectory.sampled import MIN_SAMPLES, Trajectory, check_uniform_time
 
 #: Axis columns are named after the machine's axes: t,X,Y,Z,A,C on an A-C machine, t,X,Y,Z,B,C
 #: on a B-C machine (``Machine.axis_names``; the q slot 3 holds the tilt axis either way).
-#: A B-C machine still reads the old spelling, column A holding B, with a one-line notice.
+#: A B-C machine still reads the old spelling, column A holding B, with a one-line notice; an
+#: A-B machine (two tilts) has t,X,Y,Z,A,B.
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("t",) + AXES
 #: Letters of rotary axis columns.
 ROTARY_COLUMNS: tuple[str, ...] = ("A", "B", "C")
@@ -157,8 +158,11 @@ def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinemat
 def _axis_columns(columns: dict, axis_names: Sequence[str] | None, source: str
                   ) -> tuple[str, ...]:
     """The five column names that hold q, in q order: the machine's ``axis_names`` (its old
-    spelling ``A`` for a B-C machine's B, with a notice); without names, X Y Z, A or B, C."""
+    spelling ``A`` for a B-C machine's B, with a notice); without names, X Y Z, A or B, C, or
+    X Y Z A B where there are A and B and no C (an A-B machine's)."""
     expected = tuple(axis_names) if axis_names is not None else None
+    if expected is None and all(name in columns for name in ("A", "B")) and "C" not in columns:
+        expected = ("X", "Y", "Z", "A", "B")     # an A-B machine's file
     if expected is None:
         tilt = [name for name in ("A", "B") if name in columns]
         if len(tilt) == 2:

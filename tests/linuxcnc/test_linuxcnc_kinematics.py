@@ -1,8 +1,10 @@
 """precontour's kinematics against LinuxCNC's own modules: xyzac-trt-kins and xyzbc-trt-kins
 with the parameters of the built-in ``linuxcnc-xyzac-trt`` / ``linuxcnc-xyzbc-trt`` machines,
 running the head of LinuxCNC's impeller and boat demos, and 5axiskins (head-head) with those
-of ``linuxcnc-bridgemill``, running a program of our own (the bridge mill's demo loops in
-o-words, which precontour's reader does not run). Each TCP program (M428) runs on a
+of ``linuxcnc-bridgemill`` and xyzab_tdr_kins (A-B table dual rotary) with those of
+``linuxcnc-xyzab-tdr``, each running a program of our own (the bridge mill's demo loops in
+o-words, which precontour's reader does not run; the dual rotary's demo sets its work offset
+from HAL pins). Each TCP program (M428) runs on a
 configuration from ``linuxcnc-config``, and the joint commands LinuxCNC computes are compared
 with the library's inverse kinematics (what ``precontour trajectory --tcp`` uses) at every
 programmed point and in every servo period."""
@@ -142,8 +144,56 @@ def test_joint_commands_equal_linuxcnc_5axiskins(config, tmp_path):
     program equal the library's at every programmed point and, through motion's cubic
     interpolator, in every servo period. Measured: 0.5 nm and 1e-14 deg at the 15 points,
     2.6 nm and 8.3e-7 deg (halsampler's 6 decimals) over 6,125 periods."""
-    machine_name = "linuxcnc-bridgemill"
     program = _head_head_program(tmp_path / "bridgemill.ngc")
+    _compare_with_linuxcnc(config, "linuxcnc-bridgemill", program, points=15, periods=500)
+
+
+def _tdr_program(out, points: int = 16) -> Path:
+    """A tool centre point program (M428) for the A-B table dual rotary: the tip along a
+    closed curve around the A table's face centre (rotation point + offsets) while A sweeps
+    -90 .. 150 deg and B -40 .. 120 deg (beyond 90: the tool on the far side of the A axis,
+    cos B < 0), a dwell at each point."""
+    k = np.arange(points) / points
+    tip = np.column_stack([-70 + 40 * np.cos(2 * np.pi * k), -50 + 30 * np.sin(2 * np.pi * k),
+                           -90 + 10 * np.sin(4 * np.pi * k)])
+    a = -90 + 240 * k
+    b = -40 + 160 * np.sin(np.pi * k) ** 2
+    lines = ["G21 G90 G94 G17 G40 G49 G54", "M428", "F3000"]
+    for (x, y, z), aa, bb in zip(tip, a, b):
+        lines += [f"G1 X{x:.4f} Y{y:.4f} Z{z:.4f} A{aa:.4f} B{bb:.4f}", f"G4 P{DWELL}"]
+    out.write_text("\n".join(lines + ["M429", "M2"]) + "\n")
+    return out
+
+
+def test_joint_commands_equal_linuxcnc_xyzab_tdr_kins(config, tmp_path):
+    """The A-B table dual rotary (``xyzab-tdr``) machine ``linuxcnc-xyzab-tdr`` against
+    LinuxCNC's ``xyzab_tdr_kins`` with the sim's parameters: the joints LinuxCNC computes for a
+    tool centre point program equal the library's at every programmed point and, through
+    motion's cubic interpolator, in every servo period; and the library's inverse from tool tip
+    and orientation gives them too, on either solution. Measured: 0.5 nm and 1.4e-14 deg at the
+    15 points (the inverse from tip and orientation: 0.5 nm, 2.8e-14 deg), 1.4 nm and 8.3e-7
+    deg (halsampler's 6 decimals) over 7,592 periods."""
+    program = _tdr_program(tmp_path / "tdr.ngc")
+    found, q = _compare_with_linuxcnc(config, "linuxcnc-xyzab-tdr", program, points=15,
+                                      periods=500)
+    # the library's inverse from tool tip and orientation, on the solution of the programmed
+    # B (cos B < 0 beyond 90 deg), gives LinuxCNC's joints too
+    kin = load_machine("linuxcnc-xyzab-tdr").kinematics
+    P, O = kin.forward(q)
+    inverse = kin.inverse(P, O, c_near=q[:, 4])
+    assert (np.cos(q[:, 4]) < 0).any() and (np.cos(q[:, 4]) > 0).any()
+    error = np.abs(np.array(found) - np.column_stack([inverse[:, :3],
+                                                      np.degrees(inverse[:, 3:])]))
+    assert error[:, :3].max() < LINEAR_TOL, error[:, :3].max(axis=0)
+    assert error[:, 3:].max() < ANGLE_TOL, error[:, 3:].max(axis=0)
+
+
+def _compare_with_linuxcnc(config, machine_name, program, *, points, periods):
+    """Run ``program`` on the configuration of ``machine_name``; LinuxCNC's joints while it
+    dwells at each programmed point against read_program's (the library's linear_axes), and in
+    every servo period against the cubic interpolator over the library's inverse of the
+    planner's position. Returns LinuxCNC's joints at the points and the library's axes
+    there."""
     machine = load_machine(machine_name)
     rec = run_gcode(config(machine_name), program)
     assert rec.overruns == 0
@@ -162,7 +212,7 @@ def test_joint_commands_equal_linuxcnc_5axiskins(config, tmp_path):
         found.append(joints[n + 4])
         at = n
     error = np.abs(np.array(found) - expected)
-    assert len(found) >= 15   # the points after the first: precontour's path starts there
+    assert len(found) >= points   # the points after the first: precontour's path starts there
     assert error[:, :3].max() < LINEAR_TOL, error[:, :3].max(axis=0)
     assert error[:, 3:].max() < ANGLE_TOL, error[:, 3:].max(axis=0)
     inverse = np.column_stack([machine.kinematics.linear_axes(world[:, :3],
@@ -173,6 +223,7 @@ def test_joint_commands_equal_linuxcnc_5axiskins(config, tmp_path):
     n = np.arange(max(running[0], 3), running[-1])
     smoothed = (inverse[n - 3] + 4 * inverse[n - 2] + inverse[n - 1]) / 6
     error = np.abs(joints[n] - smoothed)
-    assert n.size > 500
+    assert n.size > periods
     assert error[:, :3].max() < LINEAR_TOL, error[:, :3].max(axis=0)
     assert error[:, 3:].max() < ANGLE_TOL, error[:, 3:].max(axis=0)
+    return found, q

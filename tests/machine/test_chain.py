@@ -1,7 +1,9 @@
 """The generic chain (machine-file type ``chain``) against every other type as its preset
 (:func:`precontour.machine.kinematics.chain_of`): the same tip, orientation, linear axes,
 Jacobian and path inverse; against the independent 4 x 4 chain of tests/machine/
-test_families.py; and the machine file's ``chain`` tables, read and refused."""
+test_families.py; and the machine file's ``chain`` tables, read and refused. Chains of two
+tilts (A and B, no C) in every arrangement against the same 4 x 4 chain, inverted on both
+solutions, and the A-B table's chain equal to ``xyzab-tdr``."""
 
 import numpy as np
 import pytest
@@ -10,7 +12,7 @@ from hypothesis import strategies as st
 
 from precontour.errors import MachineFileError
 from precontour.machine import parse_machine
-from precontour.machine.kinematics import ChainKinematics, RotaryAxis, chain_of
+from precontour.machine.kinematics import ChainKinematics, RotaryAxis, TwoTiltChain, chain_of
 from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
 from precontour.machine.machine_file import builtin_machine_text
 
@@ -178,3 +180,148 @@ def test_any_chain_equals_the_independent_chain_and_inverts(kin, q):
     from dataclasses import replace
     P_short, _ = replace(kin, tool_offset=kin.tool_offset - 1.0).forward(q)
     np.testing.assert_allclose(P_short - P, O, rtol=0, atol=1e-11)
+
+
+# ---------------------------------------------------------------- two tilts (A-B)
+def _oracle_of_two_tilts(kin: TwoTiltChain):
+    """The independent 4 x 4 chain of a TwoTiltChain: on each side the carrier first (head:
+    from the ram outwards; table: from the base outwards), each axis turning right-handed
+    about its direction."""
+    from test_families import Axis, Chain
+
+    def axis(a, slot):
+        return Axis(slot, np.array(a.direction), np.array(a.point), 1.0)
+
+    pairs = [(kin.a, 3), (kin.b, 4)]
+    if kin.carrier == "A":
+        pairs = pairs[::-1]
+    pairs = pairs[::-1]            # the carrier first
+    head = tuple(axis(a, s) for a, s in pairs if a.side == "head")
+    table = tuple(axis(a, s) for a, s in pairs if a.side == "table")
+    return Chain(head=head, table=table, tool=kin.tool_offset, linear=kin.linear_senses,
+                 frame=(np.eye(3), -np.array(kin.workpiece_origin)))
+
+
+two_tilt_chains = st.builds(
+    lambda sides, carrier, s_a, s_b, p_a, p_b, tool, senses, origin:
+    TwoTiltChain(a=RotaryAxis("A", sides[0], (s_a, 0.0, 0.0), p_a),
+                 b=RotaryAxis("B", sides[1], (0.0, s_b, 0.0), p_b), carrier=carrier,
+                 tool_offset=tool, linear_senses=senses, workpiece_origin=origin),
+    st.sampled_from([("table", "table"), ("head", "head"), ("head", "table"),
+                     ("table", "head")]),
+    st.sampled_from(["A", "B"]), sign, sign, st.tuples(coordinate, coordinate, coordinate),
+    st.tuples(coordinate, coordinate, coordinate), st.floats(0, 300, **finite),
+    st.tuples(sign, sign, sign), st.tuples(coordinate, coordinate, coordinate))
+two_tilt_poses = st.tuples(st.floats(-300, 300, **finite), st.floats(-300, 300, **finite),
+                           st.floats(-300, 300, **finite), st.floats(-3.1, 3.1, **finite),
+                           st.floats(-3.1, 3.1, **finite))
+
+
+@settings(max_examples=400, deadline=None)
+@given(kin=two_tilt_chains, q=two_tilt_poses)
+def test_any_two_tilt_chain_equals_the_independent_chain_and_inverts(kin, q):
+    from dataclasses import replace
+
+    q = np.array(q)
+    P, O = kin.forward(q)
+    P_ref, O_ref = _oracle_of_two_tilts(kin).forward(q)
+    np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(O, O_ref, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(kin.orientation(q), O, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(kin.linear_axes(P, q[3], q[4]), q[:3], rtol=0, atol=1e-9)
+    P_short, _ = replace(kin, tool_offset=kin.tool_offset - 1.0).forward(q)
+    np.testing.assert_allclose(P_short - P, O, rtol=0, atol=1e-11)
+    # the solution nearest the pose's B and the one nearest B + 2 rad (often the other one)
+    # each reproduce the pose to 1e-9 mm; the first is the pose itself
+    if abs(kin.pole_distance(q[3], q[4])) > 1e-6:
+        for near in (q[4], q[4] + 2.0):
+            back = kin.inverse(P[None], O[None], c_near=np.array([near]))[0]
+            P2, O2 = kin.forward(back)
+            np.testing.assert_allclose(P2, P, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(O2, O, rtol=0, atol=1e-14)
+        own = kin.inverse(P[None], O[None], c_near=np.array([q[4]]))[0]
+        np.testing.assert_allclose(np.cos(own[3:] - q[3:]), 1.0, atol=1e-12)
+        np.testing.assert_allclose(own[:3], q[:3], atol=1e-9)
+    # the Jacobian against central differences of the independent chain
+    h = 1e-6
+    jac = kin.orientation_jacobian(q[3], q[4])
+    oracle = _oracle_of_two_tilts(kin)
+    for k in (0, 1):
+        up, down = q.copy(), q.copy()
+        up[3 + k] += h
+        down[3 + k] -= h
+        fd = (oracle.forward(up)[1] - oracle.forward(down)[1]) / (2 * h)
+        np.testing.assert_allclose(jac[:, k], fd, atol=1e-9)
+
+
+def test_two_tilt_path_through_the_singularity_on_every_arrangement():
+    # the tool sweeps through the outer axis's direction: continuous axes, exact poses
+    for sides in (("table", "table"), ("head", "head"), ("head", "table"), ("table", "head")):
+        for carrier in ("A", "B"):
+            kin = TwoTiltChain(a=RotaryAxis("A", sides[0], (1.0, 0.0, 0.0), (5.0, 0.0, 30.0)),
+                               b=RotaryAxis("B", sides[1], (0.0, -1.0, 0.0), (0.0, 3.0, 60.0)),
+                               carrier=carrier, tool_offset=50.0)
+            outer = np.eye(3)[0 if kin._outer_x else 1]
+            s = np.linspace(-1, 1, 2001)
+            other = np.cross(outer, [0.0, 0.0, 1.0])
+            O = (np.cos(0.6 * s)[:, None] * outer + np.sin(0.6 * s)[:, None] * [0, 0, 1]
+                 + 1e-3 * other)
+            O /= np.linalg.norm(O, axis=1, keepdims=True)
+            P = np.stack([40 * s, 10 + 0 * s, 5 * s**2], axis=1)
+            q = kin.inverse(P, O)
+            assert np.abs(np.diff(q[:, 3:], axis=0)).max() <= np.pi / 2, (sides, carrier)
+            P2, O2 = kin.forward(q)
+            np.testing.assert_allclose(P2, P, atol=1e-9)
+            np.testing.assert_allclose(O2, O, atol=1e-12)
+
+
+AB_TABLE = """
+[kinematics]
+type = "chain"
+tool_offset = 0.0
+carrier = "B"
+[kinematics.A]
+carried_by = "table"
+direction = [-1, 0, 0]
+point = [-70, -50, -110]
+[kinematics.B]
+carried_by = "table"
+direction = [0, -1, 0]
+point = [-50, -50, -100]
+"""
+
+
+def _ab_machine_text(kinematics: str) -> str:
+    text = builtin_machine_text("linuxcnc-xyzab-tdr")
+    return "name = \"t\"\n" + kinematics + "\n" + text[text.index("[drives.X]"):]
+
+
+def test_two_tilt_chain_machine_file_is_the_xyzab_tdr_machine():
+    from precontour.machine import load_machine
+
+    machine = parse_machine(_ab_machine_text(AB_TABLE))
+    builtin = load_machine("linuxcnc-xyzab-tdr")
+    kin = machine.kinematics
+    assert isinstance(kin, TwoTiltChain) and machine.axis_names == ("X", "Y", "Z", "A", "B")
+    assert kin == chain_of(builtin.kinematics)   # the travels of both drives included
+    rng = np.random.default_rng(5)
+    q = np.column_stack([rng.uniform(-100, 100, (300, 3)), rng.uniform(-3, 3, (300, 2))])
+    P, O = kin.forward(q)
+    P_ref, O_ref = builtin.kinematics.forward(q)
+    np.testing.assert_allclose(P, P_ref, atol=1e-9)
+    np.testing.assert_allclose(O, O_ref, atol=1e-14)
+    np.testing.assert_allclose(kin.inverse(P, O), builtin.kinematics.inverse(P, O), atol=1e-9)
+
+
+@pytest.mark.parametrize("change, message", [
+    (('carrier = "B"\n', ''), "carrier: missing"),
+    (('carrier = "B"', 'carrier = "C"'), "carrier: unknown value"),
+    (('carried_by = "table"\ndirection = [0, -1, 0]', 'carried_by = "head"\ndirection = [0, -1, 0]'),
+     "carrier: only for two axes on the same side"),
+    (('direction = [0, -1, 0]', 'direction = [0, 0, 1]'), r"\[kinematics.B\] direction: must be"),
+])
+def test_two_tilt_chain_machine_file_errors_name_the_key(change, message):
+    text = AB_TABLE.replace(*change)
+    assert text != AB_TABLE
+    with pytest.raises(MachineFileError, match=message):
+        parse_machine(_ab_machine_text(text), source="m.toml")

@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from precontour.machine import load_machine
-from precontour.machine.kinematics import (ACTrunnion, XYZACTrunnion, XYZBCHeadHead,
-                                           XYZBCHeadTable, XYZBCTrunnion)
+from precontour.machine.kinematics import (ACTrunnion, XYZABTableDualRotary, XYZACTrunnion,
+                                           XYZBCHeadHead, XYZBCHeadTable, XYZBCTrunnion)
 from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
 
 EX, EY, EZ = np.eye(3)
@@ -99,6 +99,13 @@ def chain_of(kin) -> Chain:
         pivot = (0, 0, kin.pivot_length)
         return Chain(head=(Axis(4, EZ, pivot, kin.c_direction),
                            Axis(3, EY, pivot, kin.b_direction)), tool=kin.tool_offset)
+    if isinstance(kin, XYZABTableDualRotary):
+        # two tilts on the table: the B trunnion on the base carries the A table, which
+        # carries the part; A's line passes through the rotation point plus the offsets
+        r = np.array([kin.x_rot_point, kin.y_rot_point, kin.z_rot_point])
+        d = np.array([kin.x_offset, 0.0, kin.z_offset])
+        return Chain(table=(Axis(4, EY, r, -1.0), Axis(3, EX, r + d, -1.0)),
+                     tool=kin.tool_offset)
     raise TypeError(type(kin))
 
 
@@ -114,6 +121,8 @@ FAMILIES = {
     "head-table -+": XYZBCHeadTable(35.0, -12.0, 7.5, 120.0, 80.0, -1.0, 1.0),
     "head-head 5axiskins": XYZBCHeadHead(250.0, 0.0),
     "head-head ++": XYZBCHeadHead(180.0, 65.0, 1.0, 1.0),
+    "xyzab-tdr sim": XYZABTableDualRotary(-50.0, -50.0, -100.0, -20.0, -10.0, 0.0),
+    "xyzab-tdr tool": XYZABTableDualRotary(12.0, -35.0, 80.0, 15.0, 25.0, 70.0),
 }
 HEADS = {name: kin for name, kin in FAMILIES.items() if name.startswith("head")}
 ALL = pytest.mark.parametrize("kin", list(FAMILIES.values()), ids=list(FAMILIES))

@@ -21,7 +21,8 @@ from precontour.machine.template import (CONTROLLER_KEYS, KINEMATICS_KEYS, machi
 
 BUILTIN_OF_TYPE = {"ac-trunnion": "zhang2013", "xyzac-trt": "linuxcnc-xyzac-trt",
                    "xyzbc-trt": "linuxcnc-xyzbc-trt", "xyzbc-head-table": "head-table-bc",
-                   "xyzbc-head-head": "linuxcnc-bridgemill", "chain": "head-table-ac"}
+                   "xyzbc-head-head": "linuxcnc-bridgemill", "chain": "head-table-ac",
+                   "xyzab-tdr": "linuxcnc-xyzab-tdr"}
 
 
 def test_every_kinematics_and_controller_type_is_described():

@@ -301,3 +301,29 @@ def test_demo_on_a_head_head_machine_from_the_command_line(tmp_path, capsys):
                     axis_names=machine.axis_names)
     labels = [ax.get_ylabel() for ax in fig.axes[1:]]
     assert labels == ["X (mm)", "Y (mm)", "Z (mm)", "B (rad)", "C (rad)"]
+
+
+def test_demo_on_the_two_tilt_table_from_the_command_line(tmp_path, capsys):
+    """``demo --machine`` on LinuxCNC's A-B table dual rotary: the figures and bandwidths name
+    A and B (B in slot 4), compensation removing most of the error on the realistic machine
+    (measured: 89.8 % of the max tip error with pid-high, 93.9 % with pid-low)."""
+    from precontour import load_machine
+    from precontour.cli import main
+    from precontour.reports.demo_report import plot_path
+    from precontour.trajectory import builtin_path
+    from precontour.trajectory.generate import generate_trajectory
+
+    out = tmp_path / "report"
+    assert main(["demo", "--machine", "linuxcnc-xyzab-tdr", "--report", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("contour errors on linuxcnc-xyzab-tdr:")
+    row = next(line for line in printed.splitlines()
+               if line.startswith("paper  pid-high    realistic  pre-compensated"))
+    assert float(row.split()[-4]) >= 85.0            # reduction of the max tip error, %
+    assert ", B 5" in (out / "index.html").read_text() and "C 5" not in (
+        out / "index.html").read_text()
+    machine = load_machine("linuxcnc-xyzab-tdr")
+    fig = plot_path(generate_trajectory(builtin_path("paper"), machine),
+                    axis_names=machine.axis_names)
+    labels = [ax.get_ylabel() for ax in fig.axes[1:]]
+    assert labels == ["X (mm)", "Y (mm)", "Z (mm)", "A (rad)", "B (rad)"]

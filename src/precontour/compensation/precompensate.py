@@ -305,8 +305,9 @@ def _lead_blend(closest: np.ndarray, reference_now: np.ndarray, lead: np.ndarray
     return closest + beta[:, None] * (reference_now - closest)
 
 
-#: Singularity-robust rotary correction near the pole A = 0 (tool along C): damped least
-#: squares with damping that grows from 0 where |sin A| = POLE_ZONE to POLE_DAMPING at the pole.
+#: Singularity-robust rotary correction near the pole A = 0 (tool along C; on an A-B table
+#: B = +-90 deg, tool along A): damped least squares with damping that grows from 0 where
+#: |sin A| (|cos B|) = POLE_ZONE to POLE_DAMPING at the pole.
 POLE_ZONE = 0.1
 POLE_DAMPING = 0.05
 ROTARY_NEWTON_STEPS = 3
@@ -326,7 +327,7 @@ def _rotary_towards(kinematics, A, C, O_target):
         jac = kinematics.orientation_jacobian(A, C)                     # (N, 3, 2)
         residual = O_target - kinematics.orientation(A, C)
         d_a, d_c = jac[..., 0], jac[..., 1]
-        sin_a = np.abs(np.sin(A))
+        sin_a = _pole_distance(kinematics, A, C)
         damping = np.where(sin_a < POLE_ZONE,
                            POLE_DAMPING**2 * (1.0 - (sin_a / POLE_ZONE) ** 2), 0.0)
         # the 2 x 2 normal equations, solved in closed form (positive definite: the A column
@@ -340,6 +341,14 @@ def _rotary_towards(kinematics, A, C, O_target):
         A += (n_cc * r_a - n_ac * r_c) / det
         C += (n_aa * r_c - n_ac * r_a) / det
     return np.stack([A, C], axis=1)
+
+
+def _pole_distance(kinematics, A, C) -> np.ndarray:
+    """How far the rotary axes stand from the singular pose, where one column of the
+    orientation Jacobian vanishes: |sin A| of the tilt in slot 3 (the pole, tool along the
+    turning axis), or the kinematics' own ``pole_distance`` (|cos B| on an A-B table)."""
+    own = getattr(kinematics, "pole_distance", None)
+    return np.abs(np.sin(A)) if own is None else own(A, C)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

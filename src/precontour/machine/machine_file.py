@@ -2,13 +2,15 @@
 
 A machine file has a ``[kinematics]`` table (``type`` picks a module of
 :mod:`precontour.machine.kinematics`), one ``[drives.<axis>]`` table per axis of the machine
-(X Y Z A C, or X Y Z B C on a B-C machine: the kinematics' ``axis_names``) with an optional
+(X Y Z A C, X Y Z B C on a B-C machine, X Y Z A B on an A-B table: the kinematics'
+``axis_names``) with an optional
 ``friction`` table and optional travel ``p_min``/``p_max``, and named ``[controllers.<name>]``
 tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`,
 and an optional ``[gcode]`` table of the controller data G-code programs refer to (G28/G30
 reference positions, work offsets; :mod:`precontour.machine.gcode`).
 The tilt drive's travel (slot 3) bounds the tilt sign that inverse kinematics picks, unless
-the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``). Every value is
+the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``); on an A-B table
+(``xyzab-tdr``) both rotary drives' travels bound the inverse's choice. Every value is
 checked; unknown and missing keys are errors naming the file, table and key. Units: mm, rad,
 s; drive parameters SI.
 """
@@ -69,7 +71,8 @@ class Machine:
     @property
     def axis_names(self) -> tuple[str, ...]:
         """The five axis letters in q order: ("X", "Y", "Z", "A", "C"), or B in slot 3 on a
-        B-C machine (for G-code; trajectory columns stay X,Y,Z,A,C)."""
+        B-C machine, or ("X", "Y", "Z", "A", "B") on an A-B table: the letters of G-code and
+        of the axis columns of trajectory and command files."""
         return tuple(getattr(self.kinematics, "axis_names", AXES))
 
     def drive(self, axis: str) -> Drive:
@@ -205,7 +208,10 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     drives = tuple(_parse_drive(axis, drives_table.get_table(axis)) for axis in axis_names)
     drives_table.finish()
     tilt = drives[3]
-    if hasattr(kinematics, "with_tilt_limits"):
+    if hasattr(kinematics, "with_rotary_travel"):   # both rotary axes' travel matter
+        kinematics = kinematics.with_rotary_travel((tilt.p_min, tilt.p_max),
+                                                   (drives[4].p_min, drives[4].p_max))
+    elif hasattr(kinematics, "with_tilt_limits"):
         kinematics = kinematics.with_tilt_limits(tilt.p_min, tilt.p_max)
 
     controllers_table = top.get_table("controllers")

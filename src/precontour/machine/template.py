@@ -80,6 +80,21 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("c_direction", "", "+1 or -1, the sense of rotation of C: +1 is 5axiskins's "
                             "(right-handed about +z)"),
     ),
+    "xyzab-tdr": (
+        ("x_rot_point", "mm", "rotation point, where the B axis meets the A axis at zero "
+                              "offsets, in the machine frame, x (HAL pin "
+                              "xyzab_tdr_kins.x-rot-point)"),
+        ("y_rot_point", "mm", "... y (HAL pin xyzab_tdr_kins.y-rot-point)"),
+        ("z_rot_point", "mm", "... z (HAL pin xyzab_tdr_kins.z-rot-point)"),
+        ("x_offset", "mm", "A table face centre relative to the rotation point, x: along the A "
+                           "axis, so without effect on the kinematics (HAL pin "
+                           "xyzab_tdr_kins.x-offset)"),
+        ("z_offset", "mm", "A axis relative to the rotation point, z (HAL pin "
+                           "xyzab_tdr_kins.z-offset)"),
+        ("tool_offset", "mm", "tool length, motion.tooloffset.z (HAL pin "
+                              "xyzab_tdr_kins.tool-offset-z); A and B have no direction "
+                              "pins: both turn the part left-handed about +x, +y"),
+    ),
     "chain": (
         ("tool_offset", "mm", "tool length: at the zero pose the tip is this far below the "
                               "spindle nose, the tool along +z"),
@@ -88,13 +103,17 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
         ("workpiece_origin", "mm", "optional: origin of the workpiece frame in the machine "
                                    "frame at the zero pose; it turns with the table's axes "
                                    "(default [0, 0, 0])"),
+        ("carrier", "", "two tilts A and B (no C) on the same side only: \"A\" or \"B\", the "
+                        "one that carries the other (on a table nearer the base, on a head "
+                        "nearer the ram)"),
     ),
 }
-#: Keys of a chain's rotary axis tables, ``[kinematics.A]`` (or B) and ``[kinematics.C]``.
+#: Keys of a chain's rotary axis tables, ``[kinematics.A]`` (or B) and ``[kinematics.C]``, or
+#: ``[kinematics.A]`` and ``[kinematics.B]``.
 CHAIN_AXIS_KEYS: tuple[tuple[str, str, str], ...] = (
     ("carried_by", "", "table (the axis turns the part) or head (it turns the tool); on a "
                        "table C carries the part and the tilt carries C, on a head C carries "
-                       "the tilt"),
+                       "the tilt (two tilts: see carrier)"),
     ("direction", "", "unit vector of the axis, +-x for A, +-y for B, +-z for C: the command "
                       "turns right-handed about it"),
     ("point", "mm", "a point of the axis line at the zero pose: in the machine frame on a "

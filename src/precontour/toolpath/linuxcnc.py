@@ -8,12 +8,13 @@ One folder, written as a set (a temporary folder beside the target, then a renam
   ``v_max``, ``a_max``; A, B and C in degrees) and servo period, and the joints looped back
   (commanded position = feedback) as LinuxCNC's sim configurations do; replace the loop-back
   nets by the machine's position loops. ``run``'s G-code is in machine axes, so the kinematics
-  maps the program's X Y Z A C (X Y Z B C) to the joints one to one: ``trivkins`` on a
-  machine type LinuxCNC has no module for (``ac-trunnion``, ``xyzbc-head-table``), and on the
-  LinuxCNC types their own module (``xyzac-trt-kins``, ``xyzbc-trt-kins`` with the machine
-  file's offsets; ``5axiskins`` on ``xyzbc-head-head``, its pivot length plus the tool length
-  through a ``sum2``, as LinuxCNC's bridge mill sim does, and the W joint it requires standing
-  at 0) loaded identity first, with ``M428`` (tool centre point) and ``M429`` (identity)
+  maps the program's X Y Z A C (X Y Z B C, X Y Z A B) to the joints one to one: ``trivkins``
+  on a machine type LinuxCNC has no module for (``ac-trunnion``, ``xyzbc-head-table``), and on
+  the LinuxCNC types their own module (``xyzac-trt-kins``, ``xyzbc-trt-kins`` with the machine
+  file's offsets; ``xyzab_tdr_kins`` on ``xyzab-tdr`` with its rotation point and offsets;
+  ``5axiskins`` on ``xyzbc-head-head``, its pivot length plus the tool length through a
+  ``sum2``, as LinuxCNC's bridge mill sim does, and the W joint it requires standing at 0)
+  loaded identity first, with ``M428`` (tool centre point) and ``M429`` (identity)
   switching as in LinuxCNC's trunnion sim configurations.
 - ``headless.ini``: the same machine with a display program (``headless.py``, the system
   Python's ``linuxcnc`` module) that resets E-stop, turns the machine on, homes, runs one
@@ -39,7 +40,8 @@ from typing import Mapping
 
 from ..errors import InputError, OutputError
 from ..machine.drives import LINEAR_AXES
-from ..machine.kinematics import XYZACTrunnion, XYZBCHeadHead, XYZBCTrunnion
+from ..machine.kinematics import (XYZABTableDualRotary, XYZACTrunnion, XYZBCHeadHead,
+                                  XYZBCTrunnion)
 
 #: The file that marks a folder as a configuration this module wrote (it may be replaced).
 MARKER = "machine.ini"
@@ -148,6 +150,8 @@ def _kinematics(machine) -> tuple[str, str, bool, list[str]]:
     coordinates = "".join(machine.axis_names)
     if isinstance(kin, XYZBCHeadHead):
         return _five_axis_kins(machine, kin)
+    if isinstance(kin, XYZABTableDualRotary):
+        return _tdr_kins(kin)
     if not isinstance(kin, (XYZACTrunnion, XYZBCTrunnion)):
         return "trivkins", f"trivkins coordinates={coordinates}", False, []
     tilt_x = isinstance(kin, XYZACTrunnion)
@@ -201,6 +205,21 @@ def _five_axis_kins(machine, kin) -> tuple[str, str, bool, list[str]]:
              f"net :kinstype-select motion.analog-out-{SWITCHKINS_PIN:02d} => "
              "motion.switchkins-type"]
     return module, f"{module} coordinates={coordinates} sparm=identityfirst", True, lines
+
+
+def _tdr_kins(kin) -> tuple[str, str, bool, list[str]]:
+    """LinuxCNC's ``xyzab_tdr_kins`` (A-B table dual rotary) for ``xyzab-tdr``: its pins
+    are the machine file's keys (it has no direction pins and no module parameters; it
+    starts in identity kinematics, type 0)."""
+    module = "xyzab_tdr_kins"
+    lines = [f"setp {module}.{pin} {_num(getattr(kin, key))}"
+             for key, pin in (("x_rot_point", "x-rot-point"), ("y_rot_point", "y-rot-point"),
+                              ("z_rot_point", "z-rot-point"), ("x_offset", "x-offset"),
+                              ("z_offset", "z-offset"))]
+    lines.append(f"net :tool-offset motion.tooloffset.z => {module}.tool-offset-z")
+    lines.append(f"net :kinstype-select motion.analog-out-{SWITCHKINS_PIN:02d} => "
+                 "motion.switchkins-type")
+    return module, module, True, lines
 
 
 def linuxcnc_config(machine) -> LinuxcncConfig:

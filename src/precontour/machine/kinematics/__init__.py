@@ -11,8 +11,11 @@ positions q = [X, Y, Z, A, C]), ``forward(q)``, ``orientation(q)`` (or ``orienta
 - ``xyzbc-trt`` (:mod:`.xyzbc_trt`): B-C trunnion with LinuxCNC xyzbc-trt-kins's offsets;
 - ``xyzbc-head-table`` (:mod:`.xyzbc_head_table`): tilting B head, rotary C table;
 - ``xyzbc-head-head`` (:mod:`.xyzbc_head_head`): B-C fork head, LinuxCNC 5axiskins's geometry;
+- ``xyzab-tdr`` (:mod:`.xyzab_tdr`): A-B table dual rotary (two tilts, q = [X, Y, Z, A, B]),
+  LinuxCNC xyzab_tdr_kins's geometry;
 - ``chain`` (:mod:`.chain`): any of these families as a chain of rotary axes (direction, point,
-  carried by the table or the head); the types above are its presets (:func:`.chain.chain_of`).
+  carried by the table or the head), C with a tilt or two tilts A and B; the types above are
+  its presets (:func:`.chain.chain_of`).
 
 The tool tip and orientation are in the workpiece frame: on a table it turns with the table's
 rotary axes, on a head machine it is the machine frame. On the trunnions the tool orientation is
@@ -26,7 +29,8 @@ import numpy as np
 
 from ...errors import InputError, notice
 from .ac_trunnion import ACTrunnion
-from .chain import ChainKinematics, RotaryAxis, chain_of
+from .chain import ChainKinematics, RotaryAxis, TwoTiltChain, chain_of
+from .xyzab_tdr import XYZABTableDualRotary
 from .xyzac_trt import XYZACTrunnion
 from .xyzbc_head_head import XYZBCHeadHead
 from .xyzbc_head_table import XYZBCHeadTable
@@ -45,11 +49,12 @@ KINEMATICS_TYPES = {
     "xyzbc-trt": XYZBCTrunnion.from_table,
     "xyzbc-head-table": XYZBCHeadTable.from_table,
     "xyzbc-head-head": XYZBCHeadHead.from_table,
+    "xyzab-tdr": XYZABTableDualRotary.from_table,
     "chain": ChainKinematics.from_table,
 }
 
-__all__ = ["ACTrunnion", "ChainKinematics", "KINEMATICS_TYPES", "RotaryAxis", "UNIT_TOLERANCE",
-           "XYZACTrunnion", "XYZBCHeadHead", "XYZBCHeadTable", "XYZBCTrunnion", "angle_between",
+__all__ = ["ACTrunnion", "ChainKinematics", "KINEMATICS_TYPES", "RotaryAxis", "TwoTiltChain", "UNIT_TOLERANCE",
+           "XYZABTableDualRotary", "XYZACTrunnion", "XYZBCHeadHead", "XYZBCHeadTable", "XYZBCTrunnion", "angle_between",
            "chain_of", "normalize_orientations"]
 
 

@@ -25,8 +25,17 @@ workpiece frame is
 
 s and e the signs of the directions (R = Rx for A, Ry for B): the trunnions' orientation map,
 whose path inverse (:class:`~._trunnion.TrunnionKinematics`: C unwrapped, the pole tilt = 0
-bridged, the tilt sign chosen within its travel) this type shares. Axes at other angles
-(nutating heads and tables, two tilts as on an A-B table) are refused, not yet supported.
+bridged, the tilt sign chosen within its travel) this type shares.
+
+Two tilts, A (direction +-x) and B (+-y) and no C, as on an A-B table (LinuxCNC's
+xyzab_tdr_kins): each on the table or the head, and where both are on the same side
+``carrier`` names the one that carries the other (on a table the one nearer the base, on a head
+the one nearer the ram). The tool axis is then O = Ru(alpha) Rv(beta) ez, v the axis applied
+first to the tool (a head axis before a table axis; of two head axes the one nearer the tool,
+of two table axes the one nearer the base), u the other, alpha and beta their commands times
+sign sigma: the map and path inverse of :class:`~._two_tilt.TwoTiltKinematics`, q = [X, Y, Z,
+A, B] (:class:`TwoTiltChain`). Axes at other angles (nutating heads and tables) are refused,
+not yet supported.
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ import numpy as np
 
 from ._trunnion import (TrunnionKinematics, rotary_pair, tilt_x_jacobian, tilt_x_orientation,
                         tilt_x_turn, tilt_y_jacobian, tilt_y_orientation, tilt_y_turn)
+from ._two_tilt import TwoTiltKinematics
 
 #: Where a rotary axis sits: carried by the table (turns the part) or by the head (the tool).
 SIDES = ("table", "head")
@@ -84,8 +94,55 @@ def _turn_about(x: np.ndarray, axis: RotaryAxis, angle: np.ndarray, *,
     return out
 
 
+class _ChainMotion:
+    """Forward kinematics and the linear axes of a chain, from ``_head_axes()`` (the head
+    axes from the one nearest the tool), ``_table_axes()`` (the table axes from the one
+    carrying the part), each as (axis, slot), and the fields ``tool_offset``,
+    ``linear_senses``, ``workpiece_origin``."""
+
+    @property
+    def rotary_axes(self) -> tuple[tuple[RotaryAxis, int], ...]:
+        """The two rotary axes with their slots in q (3, 4)."""
+        return tuple(sorted(self._head_axes() + self._table_axes(), key=lambda item: item[1]))
+
+    def _tool(self, rotary: np.ndarray, direction: bool) -> np.ndarray:
+        """The tip relative to the spindle nose (or the tool axis, ``direction``) in the
+        machine frame: the head axes turn the zero-pose tool, the one nearest it first."""
+        start = np.array([0.0, 0.0, 1.0]) if direction else np.array([0.0, 0.0,
+                                                                      -self.tool_offset])
+        x = np.broadcast_to(start, rotary.shape[:-1] + (3,))
+        for axis, slot in self._head_axes():
+            x = _turn_about(x, axis, rotary[..., slot - 3], direction=direction)
+        return x
+
+    def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Direct kinematics: axis positions ``q[..., 5]`` (mm, rad) -> tool tip ``P[..., 3]``
+        (mm) and unit orientation ``O[..., 3]`` in the workpiece frame."""
+        q = np.asarray(q, dtype=float)
+        rotary = q[..., 3:]
+        tip = q[..., :3] * np.asarray(self.linear_senses) + self._tool(rotary, False)
+        axis = self._tool(rotary, True)
+        # into the workpiece frame: undo the table axes, the one nearest the base first
+        for table_axis, slot in reversed(self._table_axes()):
+            tip = _turn_about(tip, table_axis, -rotary[..., slot - 3])
+            axis = _turn_about(axis, table_axis, -rotary[..., slot - 3], direction=True)
+        return tip - np.asarray(self.workpiece_origin), axis
+
+    def linear_axes(self, P: np.ndarray, A, C=None) -> np.ndarray:
+        """X, Y, Z (mm, shape ``P.shape``) that put the tool tip at ``P`` (workpiece frame)
+        when the rotary axes stand at ``A`` (slot 3), ``C`` (slot 4; rad; or
+        ``linear_axes(P, rotary[..., 2])``): what tool-centre-point control computes."""
+        tilt, turn = rotary_pair(A, C)
+        rotary = np.stack(np.broadcast_arrays(tilt, turn), axis=-1)
+        tip = np.asarray(P, dtype=float) + np.asarray(self.workpiece_origin)
+        for table_axis, slot in self._table_axes():
+            tip = _turn_about(tip, table_axis, rotary[..., slot - 3])
+        nose = tip - self._tool(rotary, False)
+        return nose * np.asarray(self.linear_senses)
+
+
 @dataclass(frozen=True)
-class ChainKinematics(TrunnionKinematics):
+class ChainKinematics(_ChainMotion, TrunnionKinematics):
     """Kinematics of a chain (see the module docstring): ``tilt`` (A or B, slot 3) and ``turn``
     (C, slot 4) rotary axes, the tool length ``tool_offset`` (mm), ``linear_senses`` (+1/-1 for
     X, Y, Z), ``workpiece_origin`` (mm), and the tilt travel ``tilt_min``/``tilt_max`` (rad,
@@ -105,7 +162,8 @@ class ChainKinematics(TrunnionKinematics):
         check_chain(self.tilt, self.turn)
 
     @classmethod
-    def from_table(cls, table) -> "ChainKinematics":
+    def from_table(cls, table):
+        """The machine file's ``chain`` (a :class:`TwoTiltChain` where its axes are A and B)."""
         return chain_from_table(table)
 
     # ---------------------------------------------------------------- the trunnion hooks
@@ -142,40 +200,62 @@ class ChainKinematics(TrunnionKinematics):
         """Table axes from the one carrying the part: (axis, slot)."""
         return [(a, s) for a, s in ((self.turn, 4), (self.tilt, 3)) if a.side == "table"]
 
-    def _tool(self, rotary: np.ndarray, direction: bool) -> np.ndarray:
-        """The tip relative to the spindle nose (or the tool axis, ``direction``) in the
-        machine frame: the head axes turn the zero-pose tool, the one nearest it first."""
-        start = np.array([0.0, 0.0, 1.0]) if direction else np.array([0.0, 0.0,
-                                                                      -self.tool_offset])
-        x = np.broadcast_to(start, rotary.shape[:-1] + (3,))
-        for axis, slot in self._head_axes():
-            x = _turn_about(x, axis, rotary[..., slot - 3], direction=direction)
-        return x
 
-    def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Direct kinematics: axis positions ``q[..., 5]`` (mm, rad) -> tool tip ``P[..., 3]``
-        (mm) and unit orientation ``O[..., 3]`` in the workpiece frame."""
-        q = np.asarray(q, dtype=float)
-        rotary = q[..., 3:]
-        tip = q[..., :3] * np.asarray(self.linear_senses) + self._tool(rotary, False)
-        axis = self._tool(rotary, True)
-        # into the workpiece frame: undo the table axes, the one nearest the base first
-        for table_axis, slot in reversed(self._table_axes()):
-            tip = _turn_about(tip, table_axis, -rotary[..., slot - 3])
-            axis = _turn_about(axis, table_axis, -rotary[..., slot - 3], direction=True)
-        return tip - np.asarray(self.workpiece_origin), axis
+@dataclass(frozen=True)
+class TwoTiltChain(_ChainMotion, TwoTiltKinematics):
+    """A chain of two tilts (see the module docstring): ``a`` (A, direction +-x, slot 3) and
+    ``b`` (B, +-y, slot 4), ``carrier`` the letter of the one carrying the other where both
+    are on the same side, the tool length ``tool_offset`` (mm), ``linear_senses``,
+    ``workpiece_origin`` (mm), and the travels ``a_min`` ... ``b_max`` (rad, ``None``: free;
+    the drives' ``p_min``/``p_max``)."""
 
-    def linear_axes(self, P: np.ndarray, A, C=None) -> np.ndarray:
-        """X, Y, Z (mm, shape ``P.shape``) that put the tool tip at ``P`` (workpiece frame)
-        when the rotary axes stand at ``A`` (the tilt), ``C`` (rad; or
-        ``linear_axes(P, rotary[..., 2])``): what tool-centre-point control computes."""
-        tilt, turn = rotary_pair(A, C)
-        rotary = np.stack(np.broadcast_arrays(tilt, turn), axis=-1)
-        tip = np.asarray(P, dtype=float) + np.asarray(self.workpiece_origin)
-        for table_axis, slot in self._table_axes():
-            tip = _turn_about(tip, table_axis, rotary[..., slot - 3])
-        nose = tip - self._tool(rotary, False)
-        return nose * np.asarray(self.linear_senses)
+    a: RotaryAxis
+    b: RotaryAxis
+    carrier: str
+    tool_offset: float
+    linear_senses: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    workpiece_origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    a_min: float | None = None
+    a_max: float | None = None
+    b_min: float | None = None
+    b_max: float | None = None
+
+    def __post_init__(self):
+        check_two_tilts(self.a, self.b, self.carrier)
+
+    def _ordered(self) -> list[tuple[RotaryAxis, int]]:
+        """Both axes, the carried one first."""
+        pairs = [(self.a, 3), (self.b, 4)]
+        return pairs if self.carrier == "B" else pairs[::-1]
+
+    def _head_axes(self) -> list[tuple[RotaryAxis, int]]:
+        return [(a, s) for a, s in self._ordered() if a.side == "head"]
+
+    def _table_axes(self) -> list[tuple[RotaryAxis, int]]:
+        return [(a, s) for a, s in self._ordered() if a.side == "table"]
+
+    def _sequence(self) -> list[tuple[RotaryAxis, int]]:
+        """The axes in the order they turn the tool axis into the workpiece frame: the head's
+        from the tool outwards, then the table's from the base inwards."""
+        return self._head_axes() + self._table_axes()[::-1]
+
+    @property
+    def _outer_slot(self) -> int:
+        return self._sequence()[1][1]
+
+    @property
+    def _outer_x(self) -> bool:
+        return self._sequence()[1][0].letter == "A"
+
+    @property
+    def _outer_sign(self) -> float:
+        axis = self._sequence()[1][0]
+        return axis.sign * axis.sigma
+
+    @property
+    def _inner_sign(self) -> float:
+        axis = self._sequence()[0][0]
+        return axis.sign * axis.sigma
 
 
 def direction_problem(letter: str, direction) -> str | None:
@@ -207,6 +287,21 @@ def check_chain(tilt: RotaryAxis, turn: RotaryAxis) -> None:
                          "does not orient the tool (C turns it about its own axis)")
 
 
+def check_two_tilts(a: RotaryAxis, b: RotaryAxis, carrier: str) -> None:
+    """Raise ValueError unless ``a`` (A along +-x) and ``b`` (B along +-y) make a two-tilt
+    chain, ``carrier`` ("A" or "B") the one carrying the other."""
+    for axis, letter in ((a, "A"), (b, "B")):
+        if axis.letter != letter:
+            raise ValueError(f"axis {axis.letter}: expected {letter}")
+        if axis.side not in SIDES:
+            raise ValueError(f"axis {letter}: side must be table or head, got {axis.side!r}")
+        problem = direction_problem(letter, axis.direction)
+        if problem:
+            raise ValueError(f"axis {letter}: direction {problem}")
+    if carrier not in ("A", "B"):
+        raise ValueError(f"carrier must be A or B, got {carrier!r}")
+
+
 def _vector(table, key: str, default=None) -> tuple[float, float, float]:
     """Three numbers from the machine file; ``default`` where the key is optional."""
     if default is not None and not table.has(key):
@@ -229,19 +324,25 @@ def _read_axis(table, letter: str) -> RotaryAxis:
     return axis
 
 
-def chain_from_table(table) -> ChainKinematics:
+def chain_from_table(table):
     """A ``[kinematics]`` table of type ``chain``: ``tool_offset``, optional ``linear_senses``
     and ``workpiece_origin``, and one sub-table per rotary axis (``[kinematics.C]`` and
-    ``[kinematics.A]`` or ``[kinematics.B]``) with ``carried_by``, ``direction``, ``point``."""
+    ``[kinematics.A]`` or ``[kinematics.B]``; or ``[kinematics.A]`` and ``[kinematics.B]``, with
+    ``carrier`` where both are on the same side) with ``carried_by``, ``direction``, ``point``:
+    a :class:`ChainKinematics` or a :class:`TwoTiltChain`."""
     tool = table.get_float("tool_offset")
     senses = _vector(table, "linear_senses", default=(1.0, 1.0, 1.0))
     if any(v not in (1.0, -1.0) for v in senses):
         raise table.error("linear_senses", f"must be +1 or -1 each, got {list(senses)}")
     origin = _vector(table, "workpiece_origin", default=(0.0, 0.0, 0.0))
-    tilts = [letter for letter in ("A", "B") if table.has(letter)]
-    if len(tilts) != 1:
-        raise table.error(None, "a chain needs one tilt axis, [kinematics.A] or "
-                                f"[kinematics.B], got {len(tilts)}")
+    letters = [letter for letter in ("A", "B", "C") if table.has(letter)]
+    if letters == ["A", "B"]:
+        return _two_tilts_from_table(table, tool, senses, origin)
+    tilts = [letter for letter in letters if letter != "C"]
+    if len(tilts) != 1 or "C" not in letters:
+        raise table.error(None, "a chain has two rotary axes: [kinematics.C] with one tilt axis, "
+                                "[kinematics.A] or [kinematics.B], or the two tilts A and B; "
+                                f"got {', '.join(letters) or 'none'}")
     axes = {letter: _read_axis(table.get_table(letter), letter) for letter in (tilts[0], "C")}
     try:
         return ChainKinematics(tilt=axes[tilts[0]], turn=axes["C"], tool_offset=tool,
@@ -250,7 +351,23 @@ def chain_from_table(table) -> ChainKinematics:
         raise table.error(None, str(exc)) from None
 
 
-def chain_of(kin) -> ChainKinematics:
+def _two_tilts_from_table(table, tool, senses, origin) -> TwoTiltChain:
+    """The two-tilt chain: ``[kinematics.A]``, ``[kinematics.B]`` and, where both are on the
+    same side, ``carrier`` = "A" or "B"."""
+    a = _read_axis(table.get_table("A"), "A")
+    b = _read_axis(table.get_table("B"), "B")
+    if a.side == b.side:
+        carrier = table.get_str("carrier", choices=("A", "B"))
+    elif table.has("carrier"):
+        raise table.error("carrier", f"only for two axes on the same side (A is on the {a.side},"
+                                     f" B on the {b.side})")
+    else:
+        carrier = "B"
+    return TwoTiltChain(a=a, b=b, carrier=carrier, tool_offset=tool, linear_senses=senses,
+                        workpiece_origin=origin)
+
+
+def chain_of(kin):
     """The chain of a kinematics object of another type (its preset), from its parameters;
     ``TypeError`` for a type that has none."""
     from .ac_trunnion import ACTrunnion
@@ -259,8 +376,19 @@ def chain_of(kin) -> ChainKinematics:
     from .xyzbc_head_table import XYZBCHeadTable
     from .xyzbc_trt import XYZBCTrunnion
 
-    if isinstance(kin, ChainKinematics):
+    from .xyzab_tdr import XYZABTableDualRotary
+
+    if isinstance(kin, (ChainKinematics, TwoTiltChain)):
         return kin
+    if isinstance(kin, XYZABTableDualRotary):
+        # P = Rx(a) (Ry(b) (M - t ez - r) - d) + r + d: the B trunnion through r carries the
+        # A table through r + d; both turn the part left-handed
+        (a_min, a_max), (b_min, b_max) = kin.rotary_limits
+        return TwoTiltChain(
+            a=RotaryAxis("A", "table", (-1.0, 0.0, 0.0), tuple(kin._rot_point + kin._offset)),
+            b=RotaryAxis("B", "table", (0.0, -1.0, 0.0), tuple(kin._rot_point)),
+            carrier="B", tool_offset=kin.tool_offset,
+            a_min=a_min, a_max=a_max, b_min=b_min, b_max=b_max)
     limits = dict(tilt_min=kin.tilt_limits[0], tilt_max=kin.tilt_limits[1])
     if isinstance(kin, ACTrunnion):
         # spec section 1: P = Rz(C) Rx(A) ((-X, -Y, Z) - L_ty ez) - L_ac ez
