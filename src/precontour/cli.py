@@ -625,7 +625,7 @@ def run_predict(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
-    print(_axis_table(prediction.n_knots, np.abs(e).max(axis=0)))
+    print(_axis_table(prediction.n_knots, np.abs(e).max(axis=0), machine.axis_names))
     if contour is not None:
         print("predicted contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {elapsed:.3f} s")
@@ -768,7 +768,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     print(f"simulated {commands.n_samples} samples on {machine.name}, controller "
           f"{args.controller}, {args.mode}, friction {args.friction}, feed-forward friction "
           f"{args.ff_friction}")
-    print(_axis_table(None, result.max_abs_error))
+    print(_axis_table(None, result.max_abs_error, machine.axis_names))
     if contour is not None:
         print("measured contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
@@ -1024,13 +1024,12 @@ def _summary_line(s: dict) -> str:
             f"max {s['ori_max_mrad']:.4f} mrad, mean {s['ori_mean_mrad']:.4f} mrad")
 
 
-def _axis_table(knots, max_abs_e) -> str:
-    """Per-axis table: knots (when given) and max |e| in um or mrad."""
-    from .machine.drives import AXES, ROTARY_AXES
-
+def _axis_table(knots, max_abs_e, axis_names) -> str:
+    """Per-axis table, by the machine's letters: knots (when given) and max |e| in um or
+    mrad."""
     lines = ["axis  knots      max|e|" if knots is not None else "axis      max|e|"]
-    for i, (axis, value) in enumerate(zip(AXES, max_abs_e)):
-        unit = "mrad" if axis in ROTARY_AXES else "um"
+    for i, (axis, value) in enumerate(zip(axis_names, max_abs_e)):
+        unit = "mrad" if i >= 3 else "um"
         count = f"  {knots[i]:5d}" if knots is not None else ""
         lines.append(f"{axis:>4}{count}  {value * 1e3:10.3f} {unit}")
     return "\n".join(lines)

@@ -3,6 +3,8 @@ asks for."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -72,3 +74,21 @@ def test_velocity_acceleration_and_position():
     assert ("C", "acceleration") in kinds and ("C", "jerk") in kinds
     assert not check.position_ok
     assert check.stretch[30] == pytest.approx(2.0)
+
+
+def test_messages_name_the_machines_axis_letters():
+    """On a B-C machine the tilt slot is B in limit messages and the summary table."""
+    from precontour.machine.machine_file import load_machine
+    from precontour.trajectory.builtin_paths import builtin_path
+    from precontour.trajectory.generate import generate_trajectory, summarize
+
+    machine = load_machine("linuxcnc-xyzbc-trt")
+    limits = AxisLimits.from_machine(machine)
+    assert limits.axis_names == ("X", "Y", "Z", "B", "C")
+    traj = generate_trajectory(builtin_path("paper"), machine)
+    tight = dataclasses.replace(limits, jerk=limits.jerk * np.array([1, 1, 1, 1e-3, 1]))
+    check = check_limits(traj.q, traj.ts, tight)
+    assert any(e.axis == "B" and e.quantity == "jerk" for e in check.excesses)
+    assert "B jerk" in check.format() and "rad/s^3" in check.format()
+    table = summarize(traj, machine).format()
+    assert "\nB (rad)" in table and "\nA (rad)" not in table

@@ -312,7 +312,7 @@ def _check_promise(q: np.ndarray, ts: float, machine, safety: float, axes) -> No
     full = AxisLimits.from_machine(machine)
     scaled = AxisLimits(position_min=full.position_min, position_max=full.position_max,
                         velocity=safety * full.velocity, acceleration=safety * full.acceleration,
-                        jerk=safety * full.jerk)
+                        jerk=safety * full.jerk, axis_names=full.axis_names)
     check = check_limits(q, ts, scaled)
     if not check.ok:  # pragma: no cover - guarded by construction
         raise MachineLimitError(f"the excitation of {''.join(axes)} on {machine.name} would "

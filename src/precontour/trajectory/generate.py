@@ -145,6 +145,7 @@ class TrajectorySummary:
     v_max: np.ndarray
     a_max: np.ndarray
     j_max: np.ndarray
+    axis_names: tuple[str, ...] = AXES
 
     @property
     def within_limits(self) -> bool:
@@ -162,8 +163,8 @@ class TrajectorySummary:
                  f"{'axis':<9}" + "".join(f"{head:>28}" for head in
                                           ("velocity peak/limit", "acceleration peak/limit",
                                            "jerk peak/limit"))]
-        for i, axis in enumerate(AXES):
-            unit = "mm" if axis in ("X", "Y", "Z") else "rad"
+        for i, axis in enumerate(self.axis_names):
+            unit = "mm" if i < 3 else "rad"
             cells = []
             for peak, limit in ((self.peak_velocity, self.v_max),
                                 (self.peak_acceleration, self.a_max),
@@ -195,4 +196,5 @@ def summarize(trajectory: Trajectory, machine) -> TrajectorySummary:
     return TrajectorySummary(duration=trajectory.duration, n_samples=trajectory.n_samples,
                              ts=ts, peak_feed=peak_feed, peak_velocity=peaks[0],
                              peak_acceleration=peaks[1], peak_jerk=peaks[2],
-                             v_max=v, a_max=a, j_max=j)
+                             v_max=v, a_max=a, j_max=j,
+                             axis_names=tuple(getattr(machine, "axis_names", AXES)))

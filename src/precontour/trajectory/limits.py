@@ -28,17 +28,21 @@ TILT_TRAVEL = np.pi
 
 QUANTITIES: tuple[str, ...] = ("position", "velocity", "acceleration", "jerk")
 _UNITS = {"position": "", "velocity": "/s", "acceleration": "/s^2", "jerk": "/s^3"}
+#: Letters of rotary axes on any machine (slots 3 and 4 are rotary on every type).
+ROTARY_LETTERS = ("A", "B", "C")
 
 
 @dataclass(frozen=True)
 class AxisLimits:
-    """Per-axis limits, shape (5,) each, mm or rad (per s, s^2, s^3); ``inf`` where none."""
+    """Per-axis limits, shape (5,) each, mm or rad (per s, s^2, s^3); ``inf`` where none;
+    ``axis_names``: the machine's letters of the five slots, for messages."""
 
     position_min: np.ndarray
     position_max: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
     jerk: np.ndarray
+    axis_names: tuple[str, ...] = AXES
 
     @classmethod
     def from_machine(cls, machine) -> "AxisLimits":
@@ -50,7 +54,8 @@ class AxisLimits:
         low[3] = max(low[3], -TILT_TRAVEL if tilt_low is None else tilt_low, -TILT_TRAVEL)
         high[3] = min(high[3], TILT_TRAVEL if tilt_high is None else tilt_high, TILT_TRAVEL)
         v, acc, j = axis_limits(machine)
-        return cls(position_min=low, position_max=high, velocity=v, acceleration=acc, jerk=j)
+        return cls(position_min=low, position_max=high, velocity=v, acceleration=acc, jerk=j,
+                   axis_names=tuple(getattr(machine, "axis_names", AXES)))
 
 
 @dataclass(frozen=True)
@@ -65,7 +70,7 @@ class LimitExcess:
     sample: int
 
     def format(self) -> str:
-        unit = ("rad" if self.axis in ROTARY_AXES else "mm") + _UNITS[self.quantity]
+        unit = ("rad" if self.axis in ROTARY_LETTERS else "mm") + _UNITS[self.quantity]
         if self.quantity == "position":
             return (f"{self.axis} {self.quantity} {self.value:.6g} {unit} outside its travel "
                     f"(limit {self.limit:.6g}) at t = {self.time:.4f} s")
@@ -124,7 +129,7 @@ def check_limits(q: np.ndarray, ts: float, limits: AxisLimits, *, t0: float = 0.
 
     below = q < limits.position_min
     above = q > limits.position_max
-    for i, axis in enumerate(AXES):
+    for i, axis in enumerate(limits.axis_names):
         for mask, bound in ((below[:, i], limits.position_min[i]),
                             (above[:, i], limits.position_max[i])):
             if mask.any():
@@ -143,7 +148,7 @@ def check_limits(q: np.ndarray, ts: float, limits: AxisLimits, *, t0: float = 0.
         peaks[name] = value.max(axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = value / limit
-        for i, axis in enumerate(AXES):
+        for i, axis in enumerate(limits.axis_names):
             k = int(np.argmax(ratio[:, i]))
             if ratio[k, i] > tol:
                 # Difference k spans samples k .. k + order; name its middle.
@@ -187,4 +192,4 @@ def check_travel(q: np.ndarray, limits: AxisLimits, *, source: str | None = None
                         f"would be {np.radians(value):.6g} rad)")
     if rows.size > 1:
         message += f"; {rows.size} rows are outside"
-    raise InputError(message, source=source, row=k + first_row, field=AXES[i])
+    raise InputError(message, source=source, row=k + first_row, field=name)
