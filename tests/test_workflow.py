@@ -412,3 +412,18 @@ def test_run_names_the_lines_where_compensation_is_worse(tmp_path):
     table = result.table()
     assert f"compensated worse than uncompensated on {len(worse)} line(s)" in table
     assert f"line {worse[0].line}, t = " in table
+
+
+def test_run_program_computes_without_output_locations(tmp_path):
+    """The library computes ``run`` without output paths; the same numbers as with them."""
+    from pathlib import Path
+
+    from precontour.workflow import RunOutputs, run_program
+
+    program = Path(__file__).parent / "linuxcnc" / "data" / "3plus2.ngc"
+    alone = run_program(program, machine="zhang2013", controller="pid-high")
+    written = run_program(program, RunOutputs(program=tmp_path / "o.ngc"), machine="zhang2013",
+                          controller="pid-high")
+    assert alone.stream is None
+    np.testing.assert_array_equal(alone.commands.q, written.commands.q)
+    assert alone.program.text == written.program.text

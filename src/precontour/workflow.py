@@ -397,7 +397,7 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> Outp
     return out
 
 
-def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path,
+def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machine: str | Path,
                 controller: str, tcp: bool = False, dwell: float = DEFAULT_DWELL,
                 corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
                 max_samples: int | None = None, iterations: int = 1,
@@ -406,7 +406,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                 ensemble: MachineEnsemble | None = None,
                 min_speed: float = MIN_SPEED) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``machine`` (a built-in name or a machine file) and ``controller`` have no
+    writes. ``outputs``, where given, are checked before anything is computed (None: a library
+    caller that keeps the result in memory). ``machine`` (a built-in name or a machine file) and ``controller`` have no
     default: a program compensated for another machine than the user's is wrong silently.
     ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``: planning, as
     :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
@@ -432,7 +433,9 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
             progress(done, total, message)
 
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
-    check_run_outputs(outputs, inputs)
+    if outputs is not None:
+        # checked before computing, so that a bad output location is said at once
+        check_run_outputs(outputs, inputs)
     tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
@@ -498,7 +501,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
-                     stream=outputs.stream)
+                     stream=None if outputs is None else outputs.stream)
 
 
 def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
