@@ -10,6 +10,7 @@ compiled (numba) and runs on all cores (threads over chunks of samples).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -69,12 +70,42 @@ class ContourErrors:
     tip_parameter: np.ndarray
     orientation_parameter: np.ndarray
 
-    def summary(self) -> dict[str, float]:
-        """max and mean of each, in um and mrad."""
-        return {"tip_max_um": 1e3 * float(self.tip.max()),
-                "tip_mean_um": 1e3 * float(self.tip.mean()),
-                "ori_max_mrad": 1e3 * float(self.orientation.max()),
-                "ori_mean_mrad": 1e3 * float(self.orientation.mean())}
+    def summary(self) -> "ErrorSummary":
+        """max and mean of each, in um and mrad, as named fields (``s.tip_max_um``); also a
+        read-only mapping with the same keys (``s["tip_max_um"]``), as before."""
+        return ErrorSummary(tip_max_um=1e3 * float(self.tip.max()),
+                            tip_mean_um=1e3 * float(self.tip.mean()),
+                            ori_max_mrad=1e3 * float(self.orientation.max()),
+                            ori_mean_mrad=1e3 * float(self.orientation.mean()))
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorSummary(Mapping):
+    """The max and mean contour errors: tool tip in um, orientation in mrad. Named fields,
+    and a read-only mapping of the same names (equal to a dict of them)."""
+
+    tip_max_um: float
+    tip_mean_um: float
+    ori_max_mrad: float
+    ori_mean_mrad: float
+
+    def __getitem__(self, key: str) -> float:
+        if key not in _SUMMARY_FIELDS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(_SUMMARY_FIELDS)
+
+    def __len__(self) -> int:
+        return len(_SUMMARY_FIELDS)
+
+    def __repr__(self) -> str:
+        return "ErrorSummary(" + ", ".join(f"{k}={getattr(self, k)!r}"
+                                           for k in _SUMMARY_FIELDS) + ")"
+
+
+_SUMMARY_FIELDS = ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad")
 
 
 @dataclass(frozen=True)
