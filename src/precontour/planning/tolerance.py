@@ -14,7 +14,8 @@ error exceeds the tolerance, by the stretch ``(error / (AIM * tolerance))^(1/EXP
 (a lag's contour error grows about like the square of the speed: measured on ``paper`` /
 ``pid-low``, the uncompensated tip error falls 252.8 -> 112.2 -> 63.2 um for a uniform
 stretch 1 -> 1.5 -> 2, the exponent 2.0; the compensated one 13.5 -> 5.4 -> 2.5 um, 2.3-2.6),
-with the C2 windows of :func:`~precontour.trajectory.retime.retime`, compensates the slowed
+with the C2 windows of :func:`~precontour.trajectory.retime.retime` (every sample above
+``AIM`` of it, the speed halving no faster than over :data:`HALVING_TIME`), compensates the slowed
 reference again within the axis limits
 (:func:`~precontour.compensation.within_limits.compensate_within_limits`) and measures again,
 until the tolerance holds or a round slows nothing more. Only slowing: the result is the
@@ -52,8 +53,16 @@ AIM = 0.8
 #: docstring: 2.0 uncompensated, 2.3-2.6 compensated on ``paper``; the smaller one errs on
 #: the slow side).
 EXPONENT = 2.0
+#: Shortest time (s) over which the speed of a slow-down halves (:func:`gentle`). The
+#: retiming's ramps (:data:`~precontour.trajectory.retime.RAMP_TIME`) take 0.2 s whatever the
+#: stretch, so slowing to 10 % within them decelerates the tool hard, and the deceleration
+#: makes contour errors of its own at the slowed window's edge. Measured on the built-in and
+#: test paths (zhang2013 / pid-low, 10 um, uncompensated): 0.1 s lengthened the programs by
+#: 0-1.1 %, 0.25 s by 0.5-3.4 %; neither ended the creep of paper at 2 x the programmed feed
+#: (a window's edge over the tolerance moving 0.1-0.3 s a round: 12 rounds).
+HALVING_TIME = 0.1
 #: Rounds (measurements on the virtual machine) before the search gives up.
-MAX_ROUNDS = 12
+MAX_ROUNDS = 16
 #: The limit-keeping rounds of an uncompensated (baseline) retiming: the retiming's ramps
 #: add small acceleration and jerk terms (:mod:`~precontour.trajectory.retime`).
 LIMIT_ROUNDS = 6
@@ -382,6 +391,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
         if not (over & (room > 1.0 + CHECK_RTOL)).any():
             break               # every sample over the tolerance is at the lowest speed
         stretch = np.where(above & (room > 1.0 + CHECK_RTOL), np.minimum(want, room), 1.0)
+        stretch = np.minimum(gentle(stretch, current.ts), np.maximum(room, 1.0))
         retimed = retime(current, stretch, line=current_line)
         index = np.interp(retimed.old_index, np.arange(current.n_samples), index)
         current, current_line = retimed.trajectory, retimed.line
@@ -394,6 +404,19 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                       draws=ensemble.draws if on_ensemble else 1, rounds=round_,
                       machine_runs=machine_runs, misses=misses, limited=limited,
                       planned_line=planned_line)
+
+
+def gentle(stretch: np.ndarray, ts: float, halving: float | None = None) -> np.ndarray:
+    """The least stretch >= ``stretch`` whose logarithm changes by at most ln 2 per
+    ``halving`` s (default :data:`HALVING_TIME`): the speed halves or doubles no faster.
+    max_j (ln rho_j - c |k - j|), as two running maxima (c = ln 2 ts / halving)."""
+    halving = HALVING_TIME if halving is None else halving
+    log = np.log(np.maximum(stretch, 1.0))
+    c = np.log(2.0) * ts / halving
+    ramp = c * np.arange(log.size)
+    forward = np.maximum.accumulate(log + ramp) - ramp
+    backward = np.maximum.accumulate((log - ramp)[::-1])[::-1] + ramp
+    return np.exp(np.maximum(forward, backward))
 
 
 def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance, line,
