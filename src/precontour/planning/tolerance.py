@@ -416,7 +416,8 @@ def gentle(stretch: np.ndarray, ts: float, halving: float | None = None) -> np.n
     ramp = c * np.arange(log.size)
     forward = np.maximum.accumulate(log + ramp) - ramp
     backward = np.maximum.accumulate((log - ramp)[::-1])[::-1] + ramp
-    return np.exp(np.maximum(forward, backward))
+    # the running maxima's sums round off: never below the stretch asked for
+    return np.maximum(np.exp(np.maximum(forward, backward)), np.maximum(stretch, 1.0))
 
 
 def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance, line,
