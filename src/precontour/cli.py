@@ -1016,7 +1016,8 @@ def run_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     report_files = ()
     if args.report is not None:
-        from .reports.run_report import RUN_REPORT_FILES as report_files
+        from .reports.run_report import run_report_files
+        report_files = run_report_files(tolerance=args.tolerance is not None)
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
                          report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])

@@ -233,3 +233,20 @@ def test_commands_whose_kinks_were_smoothed_in_the_first_round_keep_the_limits(m
     assert found.limited.rounds == 1 and found.limited.kinks
     assert check_limits(found.commands.q, found.commands.ts,
                         AxisLimits.from_machine(machine)).ok
+
+
+def test_the_report_shows_the_feed_of_the_three_variants(tmp_path, capsys):
+    """`run --tolerance --report DIR` adds the feed figure to the report and its page."""
+    from precontour.reports.run_report import FEED_FIGURE, run_report_files
+
+    source = write_cl(fan25(), tmp_path / "fan25.csv")
+    report = tmp_path / "report"
+    assert main(["run", str(source), "--machine", "zhang2013", "--controller", "pid-low",
+                 "--tolerance", "20,0.5", "-o", str(tmp_path / "out.ngc"),
+                 "--report", str(report)]) == 0
+    printed = capsys.readouterr().out
+    assert "uncompensated within tolerance" in printed and "% shorter" in printed
+    assert sorted(p.name for p in report.iterdir()) == sorted(run_report_files(True))
+    assert (report / FEED_FIGURE).stat().st_size > 10_000
+    page = (report / "index.html").read_text()
+    assert "Feed within the tolerance" in page and page.count("data:image/png") == 3
