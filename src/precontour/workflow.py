@@ -531,7 +531,8 @@ def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
     """One line: where the compensated search misses the tolerance, by how much."""
     misses = feed.compensated.misses
     first = misses[0]
-    why = (f"even at {100 * feed_scale_min:g} % of the programmed feed" if first.floor
+    why = (f"even at {100 * feed_scale_min:g} % of the programmed feed"
+           if first.floor or first.at_rest
            else f"after {feed.compensated.rounds} rounds of slowing down")
     more = f" (and {len(misses) - 1} more place(s))" if len(misses) > 1 else ""
     return (f"the compensated program does not keep the tolerance "

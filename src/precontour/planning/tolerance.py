@@ -32,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 from ..compensation.pieces import contour_errors_program
 from ..compensation.within_limits import (LimitedCompensation, MIN_SPEED,
@@ -41,7 +42,7 @@ from ..errors import InputError, MachineLimitError
 from ..prediction.contour import ContourErrors
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, check_limits
-from ..trajectory.retime import Slowdown, retime, slowdowns_of
+from ..trajectory.retime import SPREAD_TIME, Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..simulation.ensemble import MachineEnsemble, ensemble_actual
 from ..simulation.virtual_machine import realistic_actual
@@ -117,7 +118,8 @@ class ToleranceMiss:
     ``"tip"`` (``error`` and ``limit`` in mm) or ``"orientation"`` (rad); ``speed``: the
     speed there as a fraction of the upper-bound plan's; ``floor``: whether that is the
     search's lowest speed (slower is not allowed) rather than a search that ran out of
-    rounds."""
+    rounds; ``at_rest``: the sample is at rest (a stop, the final dwell), where slowing
+    down does not help."""
 
     time: float
     index: int
@@ -128,15 +130,18 @@ class ToleranceMiss:
     speed: float
     floor: bool
     where: str = "line"
+    at_rest: bool = False
 
     def format(self) -> str:
         """``line 57, t = 1.234 s: tip error 12.3 um, 23.0 % over 10 um, at 5.0 % speed``."""
         unit, scale = ("um", 1e3) if self.quantity == "tip" else ("mrad", 1e3)
         at = f"{self.where} {self.line}, " if self.line is not None else ""
+        how = ("at rest (a stop: slowing down does not help)" if self.at_rest else
+               f"at {100 * self.speed:.1f} % of the planned speed"
+               + (" (the lowest allowed)" if self.floor else ""))
         return (f"{at}t = {self.time:.3f} s: {self.quantity} error {scale * self.error:.4g} "
                 f"{unit}, {100 * (self.error / self.limit - 1):.1f} % over "
-                f"{scale * self.limit:g} {unit}, at {100 * self.speed:.1f} % of the planned "
-                "speed" + (" (the lowest allowed)" if self.floor else ""))
+                f"{scale * self.limit:g} {unit}, {how}")
 
 
 @dataclass(frozen=True)
@@ -388,17 +393,27 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
         # (paper / pid-low, 10 um uncompensated: not met after 12 rounds)
         above = ratio > aim
         want = np.where(above, (ratio / aim) ** (1.0 / exponent), 1.0)
-        if not (over & (room > 1.0 + CHECK_RTOL)).any():
-            break               # every sample over the tolerance is at the lowest speed
-        stretch = np.where(above & (room > 1.0 + CHECK_RTOL), np.minimum(want, room), 1.0)
+        # Samples at rest are not slowed: a longer stop does not lower the error of settling
+        # under friction, and a stretched stop only lengthens the program (and the closest-
+        # point searches, whose windows widen where the path moves slowly). What a sample
+        # asks for goes to the moving samples within SPREAD_TIME of it: the approach.
+        reach = 2 * max(1, int(round(SPREAD_TIME / current.ts))) + 1
+        moves = moving(current)
+        want = np.maximum(want, maximum_filter1d(np.where(moves, 1.0, want), reach))
+        slowable = moves & (room > 1.0 + CHECK_RTOL)
+        stretch = np.where(slowable, np.minimum(want, room), 1.0)
+        if not (over & (maximum_filter1d(stretch, reach) > 1.0)).any():
+            break               # no sample over the tolerance can be slowed any more
         stretch = np.minimum(gentle(stretch, current.ts), np.maximum(room, 1.0))
+        stretch[~slowable] = 1.0
         retimed = retime(current, stretch, line=current_line)
         index = np.interp(retimed.old_index, np.arange(current.n_samples), index)
         current, current_line = retimed.trajectory, retimed.line
         if not compensate:
             current, current_line, index = _keep_limits(current, current_line, index, limits)
     commands = limited.result.trajectory if compensate else current
-    misses = _misses(current, errors, tolerance, current_line, speed, room, where)
+    misses = _misses(current, errors, tolerance, current_line, speed, room, where,
+                     moving(current))
     return FeedSearch(compensated=compensate, reference=current, commands=commands,
                       line=current_line, planned_index=index, errors=errors,
                       draws=ensemble.draws if on_ensemble else 1, rounds=round_,
@@ -420,8 +435,18 @@ def gentle(stretch: np.ndarray, ts: float, halving: float | None = None) -> np.n
     return np.maximum(np.exp(np.maximum(forward, backward)), np.maximum(stretch, 1.0))
 
 
+def moving(traj: Trajectory) -> np.ndarray:
+    """Whether each sample moves: an axis command differs from the sample before or after
+    it (a stop's held samples, and the final dwell, do not)."""
+    step = np.any(np.diff(traj.q, axis=0) != 0.0, axis=1)
+    if step.size == 0:
+        return np.zeros(traj.n_samples, dtype=bool)
+    return np.r_[step[0], step] | np.r_[step, step[-1]]
+
+
 def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance, line,
-            speed: np.ndarray, room: np.ndarray, where: str) -> tuple[ToleranceMiss, ...]:
+            speed: np.ndarray, room: np.ndarray, where: str,
+            moves: np.ndarray) -> tuple[ToleranceMiss, ...]:
     """One :class:`ToleranceMiss` per window of consecutive samples over the tolerance
     (windows closer than 0.1 s merged), worst window first."""
     ratio = tolerance.ratios(errors)
@@ -444,7 +469,8 @@ def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance
             quantity="tip" if is_tip else "orientation",
             error=float(errors.tip[j] if is_tip else errors.orientation[j]),
             limit=tolerance.tip if is_tip else tolerance.orientation,
-            speed=float(speed[j]), floor=bool(room[j] <= 1.0 + CHECK_RTOL), where=where))
+            speed=float(speed[j]), floor=bool(room[j] <= 1.0 + CHECK_RTOL), where=where,
+            at_rest=not bool(moves[j])))
     return tuple(sorted(found, key=lambda m: -m.error / m.limit))
 
 
