@@ -413,7 +413,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
     check_run_outputs(outputs, inputs)
     tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    _check_feed_options(contour_tolerance, feed_scale_max, feed_scale_min, learn)
+    _check_feed_options(contour_tolerance, feed_scale_max, feed_scale_min)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
@@ -448,8 +448,19 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                                        corner_tolerance=corner_tolerance,
                                        max_samples=max_samples, feed_scale=feed_scale_max)[0]
             line = getattr(planned, "line", None)
+        refine = None
+        if learn and _can_learn(planned, machine_obj):
+            the_ensemble = MachineEnsemble() if ensemble is None else ensemble
+
+            def refine(limited):
+                # a timing slowed beyond the learning's size is compensated without it
+                if not _can_learn(limited.reference, machine_obj):
+                    return limited
+                return learn_on_ensemble(limited, machine_obj, controller, models, limits,
+                                         learn, ensemble=the_ensemble)
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
+            refine=refine,
             feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
             progress=lambda message: step(1, message), models=models, limits=limits,
@@ -462,15 +473,8 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
         # the compensated search's commands, with the slow-downs against the upper-bound plan
         limited = replace(found.limited, slowdowns=found.slowdowns,
                           planned_index=found.planned_index)
-    if learn:
-        reference = limited.reference
-        if abs(reference.ts - machine_obj.servo_period) > 1e-9 * machine_obj.servo_period:
-            notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
-                   f"period {machine_obj.servo_period:g} s of the virtual machine")
-        elif reference.n_samples > AT_ONCE_SAMPLES:
-            notice(f"no learning: {reference.n_samples} samples are more than "
-                   f"{AT_ONCE_SAMPLES}")
-        else:
+    if learn and feed is None:
+        if _can_learn(limited.reference, machine_obj):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
             limited = learn_on_ensemble(limited, machine_obj, controller, models, limits,
@@ -507,8 +511,20 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                      stream=outputs.stream, feed=feed)
 
 
-def _check_feed_options(contour_tolerance, feed_scale_max: float, feed_scale_min: float,
-                        learn: int) -> None:
+def _can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
+    """Whether learning against the virtual machine can run on ``reference``; says why not."""
+    if abs(reference.ts - machine_obj.servo_period) > 1e-9 * machine_obj.servo_period:
+        notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
+               f"period {machine_obj.servo_period:g} s of the virtual machine")
+        return False
+    if reference.n_samples > AT_ONCE_SAMPLES:
+        notice(f"no learning: {reference.n_samples} samples are more than {AT_ONCE_SAMPLES}")
+        return False
+    return True
+
+
+def _check_feed_options(contour_tolerance, feed_scale_max: float,
+                        feed_scale_min: float) -> None:
     """Refuse feed-search options that do not go together, before any computing."""
     for name, value in (("--feed-scale-max", feed_scale_max),
                         ("--feed-scale-min", feed_scale_min)):
@@ -522,9 +538,6 @@ def _check_feed_options(contour_tolerance, feed_scale_max: float, feed_scale_min
     if feed_scale_min > feed_scale_max:
         raise InputError(f"the lowest feed scale {feed_scale_min:g} is above the highest "
                          f"{feed_scale_max:g}", field="--feed-scale-min")
-    if learn:
-        raise InputError("--learn does not go with --tolerance (the search compensates "
-                         "without learning)", field="--learn")
 
 
 def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:

@@ -323,7 +323,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
-                progress=None, **options) -> FeedSearch:
+                refine=None, progress=None, **options) -> FeedSearch:
     """The fastest local retiming of ``planned`` whose contour errors keep ``tolerance`` on
     the realistic virtual machine of ``machine`` running ``controller``; see the module
     docstring.
@@ -335,6 +335,9 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     reference itself (kept within the limits). ``min_speed``: the lowest speed, a fraction
     of ``planned``'s, 0 < min_speed <= 1. ``ensemble``: the draws a timing that keeps the
     tolerance on the machine file's machine is checked on (None: that machine only).
+    ``refine(limited) -> limited``, if given, improves each round's compensation on the same
+    reference before it is measured (``run`` learns there against the ensemble with
+    ``--learn``: at stops compensation without learning can leave more error than none).
     ``progress(message)``, if given, reports each round. The result says where the
     tolerance is not met (:attr:`FeedSearch.misses`); it raises only what compensating
     within the limits raises."""
@@ -362,6 +365,10 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                                                **options)
             index = np.interp(limited.planned_index, np.arange(current.n_samples), index)
             current, current_line = limited.reference, limited.line
+            if refine is not None:
+                if progress is not None:
+                    progress(f"compensated, round {round_}: learn")
+                limited = refine(limited)
             q = limited.result.trajectory.q
         else:
             q = current.q
@@ -478,13 +485,13 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                           tolerance: ContourTolerance, *, programmed: Trajectory | None = None,
                           feed_scale_max: float = 1.0, min_speed: float | None = None,
                           line: np.ndarray | None = None, ensemble: MachineEnsemble | None = None,
-                          progress=None, **search) -> FeedWithinTolerance:
+                          refine=None, progress=None, **search) -> FeedWithinTolerance:
     """The compensated search and the uncompensated baseline (:func:`search_feed`) from the
     upper-bound plan ``planned`` (``feed_scale_max`` times the programmed feed), and the
     program as programmed (``programmed``, default ``planned``) measured uncompensated.
     ``min_speed``: the lowest speed as a fraction of ``planned``'s (default
     :data:`~precontour.defaults.DEFAULT_FEED_SCALE_MIN` of the programmed feed, i.e. that
-    over ``feed_scale_max``)."""
+    over ``feed_scale_max``). ``refine``: the compensated search's (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
     if min_speed is None:
         min_speed = min(1.0, DEFAULT_FEED_SCALE_MIN / feed_scale_max)
@@ -495,7 +502,7 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                   **search)
     baseline = search_feed(planned, machine, controller, tolerance, compensate=False, **common)
     compensated = search_feed(planned, machine, controller, tolerance, compensate=True,
-                              **common)
+                              refine=refine, **common)
     return FeedWithinTolerance(tolerance=tolerance, programmed=programmed,
                                programmed_errors=programmed_errors, planned=planned,
                                feed_scale_max=float(feed_scale_max), min_speed=float(min_speed),
