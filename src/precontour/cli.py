@@ -395,7 +395,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "(as for compensate), after the compensation within limits: each "
                           "learning update smoothed, a command kept only if it keeps the "
                           "limits and is nowhere worse there than the uncompensated one; "
-                          "each pass costs 27 virtual-machine runs (default 0 = off)")
+                          "each pass costs 27 virtual-machine runs; with --tolerance, in "
+                          "every round of the search (default 0 = off)")
     _add_min_speed_option(run)
     _add_tol_option(run)
     run.add_argument("--tolerance", type=_contour_tolerance, default=None,
