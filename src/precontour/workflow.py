@@ -460,7 +460,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                                          learn, ensemble=the_ensemble)
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
-            refine=refine,
+            refine=refine, exempt_lines=_rapid_lines(source),
             feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
             progress=lambda message: step(1, message), models=models, limits=limits,
@@ -509,6 +509,18 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
                      stream=outputs.stream, feed=feed)
+
+
+def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
+    """The lines of a G-code program's rapids (G0): they cut nothing, so a contour-error
+    tolerance does not apply to them (CL data has none)."""
+    program = source.program
+    if program is None:
+        return ()
+    rapid = np.asarray(program.rapid, dtype=bool)
+    feed_lines = set(np.asarray(program.line)[~rapid].tolist())
+    # a line that also holds a feed move (none in RS274, but safe) keeps its tolerance
+    return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
 
 
 def _can_learn(reference: Trajectory, machine_obj: Machine) -> bool:

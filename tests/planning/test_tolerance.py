@@ -51,8 +51,8 @@ def flank():
     return ToolPath(P=P, O=(top - P) / np.linalg.norm(top - P, axis=1, keepdims=True))
 
 
-#: A G-code program with an interior stop (G4) between two curved passes, arcs and a rotary
-#: move, as machine axes (X Y Z mm, A C degrees).
+#: A G-code program with an interior stop (G4) and a rapid up (G0, line 8) between two curved
+#: passes, arcs and rotary moves, as machine axes (X Y Z mm, A C degrees).
 PROGRAM = """G21 G90 G94
 G0 X0 Y0 Z5 A0 C0
 G1 Z0 F1200
@@ -60,6 +60,8 @@ G1 X20 Y5 A5 C10 F3000
 G2 X40 Y5 I10 J0 F3000
 G1 X55 Y-10 A10 C30
 G4 P0.2
+G0 Z3
+G1 Z0 F1200
 G3 X35 Y-10 I-10 J0 F2400
 G1 X10 Y-20 A0 C0 F3000
 M2
@@ -72,18 +74,21 @@ def write_cl(toolpath, path):
     return path
 
 
-def resimulated_worst(commands_file, machine, controller, ensemble):
+def resimulated_worst(commands_file, machine, controller, ensemble, rapid_lines=()):
     """The largest tip and orientation errors of a written command file (t, q and its
-    reference Px..Ok) simulated again on the realistic machine and on each draw of
-    ``ensemble`` (simulate, draw by draw, and the reference splines, not the search's code)."""
+    reference Px..Ok, and the source line of each sample) simulated again on the realistic
+    machine and on each draw of ``ensemble`` (simulate, draw by draw, and the reference
+    splines, not the search's code), outside the samples of ``rapid_lines``."""
     traj = read_trajectory(commands_file)
     reference = ReferencePath.from_trajectory(traj)
     rotary = [d.is_rotary for d in machine.drives]
+    counted = ~np.isin(traj.line, rapid_lines) if len(rapid_lines) else slice(None)
     worst = np.zeros(2)
     for option in [{}] + ensemble.options(traj.n_samples, rotary):
         q_act = simulate(traj.t, traj.q, machine, controller, **REALISTIC, **option).q_act
         errors = reference.errors(*machine.kinematics.forward(q_act))
-        worst = np.maximum(worst, [errors.tip.max(), errors.orientation.max()])
+        worst = np.maximum(worst, [errors.tip[counted].max(),
+                                   errors.orientation[counted].max()])
     return worst
 
 
@@ -115,14 +120,15 @@ def test_the_written_program_keeps_the_tolerance_when_simulated_again(make, mach
 
 
 def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
-    """A G-code program with arcs, rotary moves and a G4 stop between two passes (pid-high,
-    20 um tip and 0.4 mrad, up to 1.5 x its programmed feed): the written compensated
-    commands keep both on the realistic machine and each of its 5 draws, simulated again
-    (measured: 14.3 um, 0.17 mrad, 5.20 s against 3.62 s as programmed). The uncompensated
-    baseline cannot keep them even at 5 % of the feed: where the rotary axes stop, static
-    friction holds them off their commands (47-48 um at lines 7 and 8, 3.4 % of the plan's
-    speed), and the misses name those lines. The upper-bound plan is shorter than the
-    programmed one: the feed scale applies to the G-code feeds."""
+    """A G-code program with arcs, rotary moves, a G4 stop and a rapid between two passes
+    (pid-high, 20 um tip and 0.4 mrad, up to 1.5 x its programmed feed): the written
+    compensated commands keep both on the realistic machine and each of its 5 draws, simulated
+    again, outside the rapid (measured: 17.7 um, 0.18 mrad; 5.64 s against 3.88 s as
+    programmed). The uncompensated baseline cannot keep them even at 5 % of the feed: where
+    the rotary axes stop, static friction holds them off their commands (49.6 um at line 10,
+    3.4 % of the plan's speed), and the misses name the lines. The upper-bound plan is
+    shorter than the programmed one (3.30 s): the feed scale applies to the G-code feeds.
+    The rapid's errors are not counted."""
     source = tmp_path / "stop.ngc"
     source.write_text(PROGRAM)
     outputs = RunOutputs(program=tmp_path / "out.ngc", commands=tmp_path / "out.csv")
@@ -134,11 +140,16 @@ def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
     assert feed.planned.duration < feed.programmed.duration - 0.5
     assert feed.compensated.met and feed.compensated.draws == 5
     tip, ori = resimulated_worst(outputs.commands, result.machine, "pid-high",
-                                 MachineEnsemble())
+                                 MachineEnsemble(), rapid_lines=[8])
     assert tip <= 0.020 and ori <= 4e-4, (tip, ori)
     assert not feed.baseline.met
-    assert all(m.floor and m.line in range(5, 10) and m.where == "line"
+    assert all(m.floor and m.line in range(5, 12) and m.where == "line"
                for m in feed.baseline.misses)
+    # the rapid cuts nothing: its errors are not counted
+    assert feed.exempt_lines == (8,)
+    for search in (feed.baseline, feed.compensated):
+        on_rapid = search.line == 8
+        assert on_rapid.sum() > 20 and not search.errors.tip[on_rapid].any()
 
 
 def test_a_looser_tolerance_never_gives_a_longer_program(machine):

@@ -163,7 +163,8 @@ class FeedSearch:
         Fractional sample index of the upper-bound plan for each sample: the time map.
     errors : ContourErrors
         Contour errors of ``commands`` on the realistic virtual machine against
-        ``reference``: at each sample the worst of ``draws`` machines.
+        ``reference``: at each sample the worst of ``draws`` machines (zero on the lines the
+        tolerance does not apply to, ``exempt_lines``).
     draws : int
         Machines ``errors`` is the worst of (1: the machine file's machine).
     rounds : int
@@ -227,6 +228,7 @@ class FeedWithinTolerance:
     min_speed: float
     baseline: FeedSearch
     compensated: FeedSearch
+    exempt_lines: tuple[int, ...] = ()
 
     @property
     def ratio(self) -> float:
@@ -256,7 +258,9 @@ class FeedWithinTolerance:
                      f"({shorter:.1f} % shorter); / as programmed: "
                      f"{self.compensated.duration / self.programmed.duration:.3f}")
         lines.append(f"feed between {100 * self.min_speed * self.feed_scale_max:g} % and "
-                     f"{100 * self.feed_scale_max:g} % of the programmed")
+                     f"{100 * self.feed_scale_max:g} % of the programmed"
+                     + (f"; the errors of the {len(self.exempt_lines)} rapid (G0) line(s) "
+                        "not counted" if self.exempt_lines else ""))
         for search, name in ((self.baseline, "uncompensated"),
                              (self.compensated, "compensated")):
             if not search.met:
@@ -296,6 +300,17 @@ def _measure(reference: Trajectory, q: np.ndarray, machine, controller,
                              np.stack([e.orientation_parameter for e in errors]), k_ori))
 
 
+def _counted(errors: ContourErrors, line, exempt_lines) -> ContourErrors:
+    """``errors`` with those of the samples on ``exempt_lines`` set to zero."""
+    if exempt_lines is None or line is None or not len(exempt_lines):
+        return errors
+    out = np.isin(line, np.asarray(list(exempt_lines)))
+    if not out.any():
+        return errors
+    return replace(errors, tip=np.where(out, 0.0, errors.tip),
+                   orientation=np.where(out, 0.0, errors.orientation))
+
+
 def _keep_limits(traj: Trajectory, line, index: np.ndarray, limits: AxisLimits):
     """The uncompensated reference slowed further where the retiming's ramps broke a limit
     (a few rounds of :func:`~precontour.trajectory.retime.retime` by the check's stretch)."""
@@ -323,7 +338,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
-                refine=None, progress=None, **options) -> FeedSearch:
+                refine=None, exempt_lines=None, progress=None, **options) -> FeedSearch:
     """The fastest local retiming of ``planned`` whose contour errors keep ``tolerance`` on
     the realistic virtual machine of ``machine`` running ``controller``; see the module
     docstring.
@@ -338,6 +353,8 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     ``refine(limited) -> limited``, if given, improves each round's compensation on the same
     reference before it is measured (``run`` learns there against the ensemble with
     ``--learn``: at stops compensation without learning can leave more error than none).
+    ``exempt_lines``: source lines (of ``line``) the tolerance does not apply to, e.g. a
+    program's rapids (G0), which cut nothing; their errors count as zero.
     ``progress(message)``, if given, reports each round. The result says where the
     tolerance is not met (:attr:`FeedSearch.misses`); it raises only what compensating
     within the limits raises."""
@@ -376,7 +393,9 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
         if progress is not None:
             progress(f"{label}, round {round_}: virtual machine"
                      + (f", {ensemble.draws} draws" if on_ensemble else ""))
-        errors = _measure(current, q, machine, controller, ensemble if on_ensemble else None)
+        errors = _counted(_measure(current, q, machine, controller,
+                                   ensemble if on_ensemble else None), current_line,
+                          exempt_lines)
         machine_runs += ensemble.draws if on_ensemble else 1
         ratio = tolerance.ratios(errors)
         over = ratio > 1.0
@@ -386,7 +405,8 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             on_ensemble = True
             if progress is not None:
                 progress(f"{label}, round {round_}: check on {ensemble.draws} draws")
-            errors = _measure(current, q, machine, controller, ensemble)
+            errors = _counted(_measure(current, q, machine, controller, ensemble),
+                              current_line, exempt_lines)
             machine_runs += ensemble.draws
             ratio = tolerance.ratios(errors)
             over = ratio > 1.0
@@ -485,28 +505,32 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                           tolerance: ContourTolerance, *, programmed: Trajectory | None = None,
                           feed_scale_max: float = 1.0, min_speed: float | None = None,
                           line: np.ndarray | None = None, ensemble: MachineEnsemble | None = None,
-                          refine=None, progress=None, **search) -> FeedWithinTolerance:
+                          refine=None, exempt_lines=None, progress=None,
+                          **search) -> FeedWithinTolerance:
     """The compensated search and the uncompensated baseline (:func:`search_feed`) from the
     upper-bound plan ``planned`` (``feed_scale_max`` times the programmed feed), and the
     program as programmed (``programmed``, default ``planned``) measured uncompensated.
     ``min_speed``: the lowest speed as a fraction of ``planned``'s (default
     :data:`~precontour.defaults.DEFAULT_FEED_SCALE_MIN` of the programmed feed, i.e. that
-    over ``feed_scale_max``). ``refine``: the compensated search's (:func:`search_feed`)."""
+    over ``feed_scale_max``). ``refine``: the compensated search's, ``exempt_lines``: both
+    searches' and the programmed errors' (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
     if min_speed is None:
         min_speed = min(1.0, DEFAULT_FEED_SCALE_MIN / feed_scale_max)
     if progress is not None:
         progress("as programmed: virtual machine")
-    programmed_errors = _measure(programmed, programmed.q, machine, controller, None)
+    programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
+                                 getattr(programmed, "line", None), exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
-                  **search)
+                  exempt_lines=exempt_lines, **search)
     baseline = search_feed(planned, machine, controller, tolerance, compensate=False, **common)
     compensated = search_feed(planned, machine, controller, tolerance, compensate=True,
                               refine=refine, **common)
     return FeedWithinTolerance(tolerance=tolerance, programmed=programmed,
                                programmed_errors=programmed_errors, planned=planned,
                                feed_scale_max=float(feed_scale_max), min_speed=float(min_speed),
-                               baseline=baseline, compensated=compensated)
+                               baseline=baseline, compensated=compensated,
+                               exempt_lines=tuple(sorted(int(k) for k in exempt_lines or ())))
 
 
 __all__ = ["AIM", "EXPONENT", "MAX_ROUNDS", "ContourTolerance", "FeedSearch",
