@@ -84,8 +84,10 @@ def paths_section(folder: Path) -> str:
         "[--feed-scale-max 2]` on each path as CL data (the built-in paths' feed is 100 mm/s; "
         "at 2 x, the tip acceleration and the axis limits cap most of the gain). Cycle times "
         "and the largest errors on the realistic virtual machine, at each sample the worst of "
-        "its 5 draws (friction, J, B, encoder) where the search got that far. *Not met*: even "
-        "the lowest feed (5 % of the programmed) misses the tolerance somewhere.", "",
+        "its 5 draws (friction, J, B, encoder) where the search got that far. *Not met*: "
+        "somewhere the tolerance is missed even at the lowest feed (5 % of the programmed), "
+        "or at a stop, which slowing down cannot help (`--learn` can: "
+        "[run](run.md#faster-within-a-tolerance---tolerance)).", "",
         markdown_table(HEADER, rows, "lllllllll")])
 
 
@@ -114,7 +116,9 @@ def linuxcnc_section(demos: Path | None, programs: list[str], folder: Path) -> s
     return "\n".join([
         "## LinuxCNC's trunnion-table examples, 5 um / 0.05 mrad", "", stamp(), "",
         "`precontour run PROGRAM --tcp --machine linuxcnc-xyzac-trt --controller pid-high "
-        "--tolerance 5,0.05 --write-anyway` (the programmed feed the upper bound).", "",
+        "--tolerance 5,0.05 --write-anyway` (the programmed feed the upper bound; the "
+        "rapids' errors not counted). Where a variant misses the tolerance, the worst places "
+        "are listed below the table.", "",
         markdown_table(HEADER, rows, "lllllllll")] + ([""] + places if places else []))
 
 
