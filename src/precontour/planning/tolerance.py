@@ -421,9 +421,8 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
         above = ratio > aim
         want = np.where(above, (ratio / aim) ** (1.0 / exponent), 1.0)
         # Samples at rest are not slowed: a longer stop does not lower the error of settling
-        # under friction, and a stretched stop only lengthens the program (and the closest-
-        # point searches, whose windows widen where the path moves slowly). What a sample
-        # asks for goes to the moving samples within SPREAD_TIME of it: the approach.
+        # under friction, and a stretched stop only lengthens the program. What a sample at
+        # rest asks for goes to the moving samples within SPREAD_TIME of it: the approach.
         reach = 2 * max(1, int(round(SPREAD_TIME / current.ts))) + 1
         moves = moving(current)
         want = np.maximum(want, maximum_filter1d(np.where(moves, 1.0, want), reach))
