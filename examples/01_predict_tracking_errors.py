@@ -8,16 +8,15 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from precontour import load_machine, predict_tracking, read_trajectory
+from precontour import load_servo, predict, read_trajectory
 
-machine = load_machine("zhang2013")
-models = machine.controller("pid-low").error_models(machine.drives)
+servo = load_servo("zhang2013", "pid-low")
 traj = read_trajectory(Path(__file__).with_name("smooth5axis.csv"))
 
-prediction = predict_tracking(traj.t, traj.q, models)
-e = prediction(traj.t)
-print("knots per axis:", prediction.fits.n_knots)
-for i, (axis, model) in enumerate(zip("XYZAC", models)):
+prediction = predict(servo, traj)
+e = prediction.e
+print("knots per axis:", prediction.n_knots)
+for i, (axis, model) in enumerate(zip(servo.axis_names, servo.models)):
     # lsim interpolates the samples linearly, the predictor follows the fitted C3 spline:
     # they agree to a fraction of a percent at 1 ms sampling
     reference = signal.lsim((model.num, model.den), traj.q[:, i] - traj.q[0, i], traj.t)[1]

@@ -32,8 +32,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from docpage import DOCS, markdown_table, stamp, write_page
-from precontour import (ReferencePath, builtin_path, contour_errors, generate_trajectory,
-                        load_machine, predict_tracking, simulate)
+from precontour import builtin_path, generate_trajectory, load_machine
+from precontour.prediction import ReferencePath, contour_errors, predict_tracking
+from precontour.simulation import simulate
 from precontour.machine.drives import AXES
 from precontour.trajectory.builtin_paths import BUILTIN_PATHS
 

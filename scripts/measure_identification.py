@@ -41,8 +41,10 @@ import numpy as np
 
 from docpage import markdown_table, replace_section, stamp
 
-from precontour import (ReferencePath, builtin_path, compensate, contour_errors, generate_trajectory,
-                        load_machine, simulate)
+from precontour import builtin_path, generate_trajectory, load_machine
+from precontour.compensation import compensate
+from precontour.prediction import ReferencePath, contour_errors
+from precontour.simulation import simulate
 from precontour.compensation.stops import DEFAULT_LEARNING_PASSES
 from precontour.identification import excitation_trajectory, identify
 from precontour.identification.servo_log import ServoLog
@@ -282,7 +284,7 @@ def main() -> None:
 
 
 def predict_tracking_of(traj, models) -> np.ndarray:
-    from precontour import predict_tracking
+    from precontour.prediction import predict_tracking
     return predict_tracking(traj.t, traj.q, models)(traj.t)
 
 

@@ -303,8 +303,8 @@ def test_run_and_export_have_no_default_machine(argv, missing, tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith(f"precontour {argv[0]}: error: the following arguments are required: "
                           f"{missing}; `precontour machines` lists the built-in machines "
-                          "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt) and their "
-                          "controllers"), err
+                          "(zhang2013, linuxcnc-xyzac-trt, linuxcnc-xyzbc-trt, head-table-bc, "
+                          "linuxcnc-bridgemill, head-table-ac) and their controllers"), err
     assert list(tmp_path.iterdir()) == []
 
 
@@ -411,3 +411,44 @@ def test_machines_template_is_refused_for_unknown_types(capsys):
     with pytest.raises(SystemExit):
         main(["machines", "--template", "nope"])
     assert "invalid choice: 'nope'" in capsys.readouterr().err
+
+
+def test_a_bc_machine_reads_and_writes_b(tmp_path, capsys, caplog):
+    """Axis letters come from the machine: on linuxcnc-xyzbc-trt the trajectory, compensate
+    and simulate files have a B column and no A, `excite --axes B` takes B; a file with the
+    old column A is still read as B, with one notice, to the same numbers."""
+    import csv
+
+    traj = tmp_path / "bc.csv"
+    assert main(["trajectory", "--builtin", "paper", "--machine", "linuxcnc-xyzbc-trt",
+                 "-o", str(traj)]) == 0
+    header = next(csv.reader(traj.open()))
+    assert header[:6] == ["t", "X", "Y", "Z", "B", "C"] and "A" not in header
+    comp = tmp_path / "comp.csv"
+    assert main(["compensate", str(traj), "--machine", "linuxcnc-xyzbc-trt", "--controller",
+                 "pid-high", "--learn", "0", "-o", str(comp)]) == 0
+    assert next(csv.reader(comp.open()))[4] == "B"
+    sim = tmp_path / "sim.csv"
+    assert main(["simulate", str(comp), "--machine", "linuxcnc-xyzbc-trt", "--controller",
+                 "pid-high", "-o", str(sim)]) == 0
+    assert next(csv.reader(sim.open()))[4] == "B"
+    # the old spelling: column A holding B
+    old = tmp_path / "old.csv"
+    old.write_text(traj.read_text().replace("t,X,Y,Z,B,C", "t,X,Y,Z,A,C", 1))
+    comp_old = tmp_path / "comp_old.csv"
+    caplog.clear()
+    assert main(["compensate", str(old), "--machine", "linuxcnc-xyzbc-trt", "--controller",
+                 "pid-high", "--learn", "0", "-o", str(comp_old)]) == 0
+    assert "column A read as the B axis" in caplog.text + capsys.readouterr().err
+    assert comp_old.read_text() == comp.read_text()
+    exc = tmp_path / "exc.csv"
+    capsys.readouterr()
+    assert main(["excite", "--machine", "linuxcnc-xyzbc-trt", "--axes", "B", "-o",
+                 str(exc)]) == 0
+    assert "axes B one at a time" in capsys.readouterr().out
+    from precontour.tables import read_trajectory
+    moved = np.ptp(read_trajectory(exc, axis_names=("X", "Y", "Z", "B", "C")).q, axis=0)
+    assert moved[3] > 0 and np.all(moved[[0, 1, 2, 4]] == 0)
+    assert main(["excite", "--machine", "linuxcnc-xyzbc-trt", "--axes", "Q", "-o",
+                 str(tmp_path / "e2.csv")]) == 2
+    assert "use letters of XYZBC" in capsys.readouterr().err

@@ -12,8 +12,7 @@ PACKAGE = Path(precontour.__file__).parent
 STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory",
           "tables",
           "prediction", "compensation", "simulation", "planning", "identification", "workflow",
-          "reports",
-          "cli")
+          "reports", "system", "cli")
 
 
 def _module_name(path: Path) -> str:
@@ -89,10 +88,21 @@ def test_no_import_cycles():
 
 
 def test_public_face():
-    for name in ("load_machine", "read_toolpath", "generate_trajectory", "predict_tracking",
-                 "contour_errors", "compensate", "simulate", "Trajectory", "ToolPath",
-                 "ContourErrors", "CompensationResult", "SimulationResult", "Machine"):
+    for name in ("load_machine", "load_servo", "Servo", "read_toolpath", "generate_trajectory",
+                 "predict", "contour_errors", "compensate", "simulate", "Trajectory",
+                 "ToolPath", "ContourErrors", "Compensation", "SimulationResult", "Machine"):
         assert name in precontour.__all__ and hasattr(precontour, name), name
+    # one public function per job: the stage functions are not re-exported beside them
+    for name in ("predict_tracking", "simulate_trajectory", "CompensationResult"):
+        assert name not in precontour.__all__, name
+
+
+def test_the_servo_goes_first_in_every_entry_point():
+    import inspect
+
+    for name in ("predict", "compensate", "simulate", "contour_errors"):
+        first = next(iter(inspect.signature(getattr(precontour, name)).parameters))
+        assert first == "servo", name
 
 
 def test_examples_use_only_the_public_face():

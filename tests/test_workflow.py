@@ -380,3 +380,35 @@ def test_run_learns_within_the_limits(tmp_path, capsys):
             peak = np.abs(np.diff(commands.q, order, axis=0)).max(axis=0) / commands.ts**order
             limit = np.array([getattr(d, key) for d in machine.drives])
             assert np.all(peak <= limit * (1 + 1e-9)), (draw, key, peak / limit)
+
+
+def test_run_names_the_lines_where_compensation_is_worse(tmp_path):
+    """The 3+2 program with arcs on zhang2013 / pid-high: without learning, the compensated
+    commands do worse than uncompensated on a few lines (measured: 3, line 17 the worst).
+    The lines the table names are checked against the simulated errors line by line, and
+    every other line is within the margins."""
+    from pathlib import Path
+
+    from precontour.workflow import RunOutputs, run_program
+
+    program = Path(__file__).parent / "linuxcnc" / "data" / "3plus2.ngc"
+    result = run_program(program, RunOutputs(program=tmp_path / "o.ngc"), machine="zhang2013",
+                         controller="pid-high")
+    worse = result.worse_lines()
+    line = result.limited.line
+    before, after = result.simulated_before, result.simulated_after
+    named = set()
+    for number in np.unique(line):
+        at = line == number
+        tip0, tip1 = before.tip[at].max(), after.tip[at].max()
+        ori0, ori1 = before.orientation[at].max(), after.orientation[at].max()
+        hurts = (tip1 > tip0 + max(1e-4, 0.05 * tip0)) or (ori1 > ori0 + max(1e-6, 0.05 * ori0))
+        if hurts:
+            named.add(int(number))
+            entry = next(w for w in worse if w.line == number)
+            assert entry.tip == pytest.approx((tip1, tip0), abs=0)
+            assert entry.orientation == pytest.approx((ori1, ori0), abs=0)
+    assert named == {w.line for w in worse} and len(worse) >= 1
+    table = result.table()
+    assert f"compensated worse than uncompensated on {len(worse)} line(s)" in table
+    assert f"line {worse[0].line}, t = " in table

@@ -11,12 +11,16 @@ stages before it::
     simulation/    the virtual machine and its control laws
     identification/ drive models from servo logs, the excitation motion
     workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
+    system.py      the servo system (machine + controller, made once) and the entry points
+                   that take it first: predict, compensate, simulate, contour_errors
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
     tables.py      checked CSV / .npz / .parquet in and out
     defaults.py    option defaults and names the help shows (standard library only)
     cli.py         the ``precontour`` command
 
 The names below are the entry points a library user needs; each is imported when first used.
+Each job has one: ``servo = load_servo(machine, controller)`` is made once and goes first in
+``predict``, ``compensate``, ``simulate`` and ``contour_errors`` (:mod:`precontour.system`).
 """
 
 from __future__ import annotations
@@ -29,15 +33,15 @@ __version__ = "0.1.0"
 #: Each public name and the module it comes from. They are imported when first used (PEP 562),
 #: so that the command line starts without the numerical stack (``precontour --help``).
 _PUBLIC = {
-    "CompensationResult": "compensation", "compensate": "compensation",
+    "Compensation": "system", "Servo": "system", "compensate": "system",
+    "contour_errors": "system", "load_servo": "system", "plot_contour_errors": "system",
+    "predict": "system",
+    "simulate": "system",
     "InputError": "errors", "MachineFileError": "errors", "PrecontourError": "errors",
     "ProgramError": "errors", "ToolPathError": "errors",
     "Machine": "machine", "load_machine": "machine",
-    "AxisPrediction": "prediction", "ContourErrors": "prediction",
-    "ReferencePath": "prediction", "contour_errors": "prediction",
-    "predict_tracking": "prediction",
-    "SimulationResult": "simulation", "simulate": "simulation",
-    "simulate_trajectory": "simulation",
+    "ContourErrors": "prediction", "ReferencePath": "prediction",
+    "SimulationResult": "simulation",
     "read_trajectory": "tables", "write_columns": "tables",
     "Program": "toolpath", "ToolPath": "toolpath", "read_program": "toolpath",
     "read_toolpath": "toolpath",
@@ -48,13 +52,13 @@ _PUBLIC = {
 __all__ = sorted(_PUBLIC) + ["__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and editors
-    from .compensation import CompensationResult, compensate
     from .errors import (InputError, MachineFileError, PrecontourError, ProgramError,
                          ToolPathError)
     from .machine import Machine, load_machine
-    from .prediction import (AxisPrediction, ContourErrors, ReferencePath, contour_errors,
-                             predict_tracking)
-    from .simulation import SimulationResult, simulate, simulate_trajectory
+    from .prediction import ContourErrors, ReferencePath
+    from .simulation import SimulationResult
+    from .system import (Compensation, Servo, compensate, contour_errors, load_servo,
+                         plot_contour_errors, predict, simulate)
     from .tables import read_trajectory, write_columns
     from .toolpath import Program, ToolPath, read_program, read_toolpath
     from .trajectory import Trajectory, builtin_path, generate_trajectory, program_trajectory

@@ -256,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "friction compensation) and on the exact linear model; print the paper's "
                     "Tables 3-4 with ours next to them and write figures, tables and an "
                     "index.html. Only the report's own files are overwritten.")
+    _add_machine_options(demo, controller=None)
     _add_report_option(demo, Path("precontour-demo"))
     demo.add_argument("--paths", default="paper", metavar="NAMES",
                       help="comma-separated built-in paths out of "
@@ -349,8 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="RAD", help="half travel of A, C around the start (default "
                                             f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
                                             "an axis's travel; one given must fit)")
-    excite.add_argument("--axes", default="XYZAC", metavar="AXES",
-                        help="axes to excite (default XYZAC)")
+    excite.add_argument("--axes", default=None, metavar="AXES",
+                        help="axes to excite, by the machine's letters (default all five: "
+                             "XYZAC, or XYZBC on a B-C machine)")
     excite.set_defaults(run=run_excite)
 
     export = commands.add_parser(
@@ -456,9 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "trivkins otherwise) and for the halstreamer stream, and a headless "
                     "display. An existing folder is replaced only if it holds such a "
                     "configuration.")
-    lcnc.add_argument("--machine", required=True,
-                      help="built-in machine name or machine TOML file (`precontour machines` "
-                           "lists the built-in ones)")
+    _add_machine_options(lcnc, required=True, controller=None)
     lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                       help="configuration folder")
     lcnc.set_defaults(run=run_linuxcnc_config)
@@ -545,7 +545,7 @@ def _add_tol_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _tolerance(text: str):
-    from .toolpath.writers import axis_tolerances
+    from .toolpath.writers import gcode_tolerances
 
     parts = text.split(",")
     if len(parts) > 2:
@@ -554,7 +554,7 @@ def _tolerance(text: str):
     linear = values[0]
     rotary = values[1] if len(values) == 2 else GCODE_TOL_ROTARY
     try:
-        return axis_tolerances(linear, rotary)
+        return gcode_tolerances(linear, rotary)
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
@@ -634,7 +634,6 @@ def run_predict(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .compensation.pieces import predict_program
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
                          write_columns)
@@ -653,7 +652,7 @@ def run_predict(args: argparse.Namespace) -> int:
                                      tol_linear=args.tol_linear, tol_rotary=args.tol_rotary)
     e = prediction.e
     columns = {"t": traj.t}
-    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(AXES)})
+    columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = prediction.contour
     if contour is not None:
         columns.update(eps_tip=contour.tip, eps_ori=contour.orientation)
@@ -702,98 +701,57 @@ def run_trajectory(args: argparse.Namespace) -> int:
     if toolpath is not None:
         traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
                                    max_samples=args.max_samples)
-    write_columns(args.output, trajectory_columns(traj), inputs=inputs)
+    write_columns(args.output, trajectory_columns(traj, machine.axis_names), inputs=inputs)
     print(summarize(traj, machine).format())
     print(f"wrote {args.output} in {time.perf_counter() - start:.3f} s")
     return 0
 
 
 def run_compensate(args: argparse.Namespace) -> int:
-    from .compensation.pieces import AT_ONCE_SAMPLES, compensate_program
-    from .machine.controllers import is_closed_loop
-    from .machine.machine_file import load_machine
-    from .simulation.ensemble import ensemble_actual
+    from .system import compensate, load_servo
     from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
-    from .workflow import compensate_keeping_limits
 
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
-    machine = load_machine(args.machine)
-    controller = machine.controller(args.controller)
-    models = controller.error_models(machine.drives)
-    learn_controller = learning_controller(machine, controller, args.learn_controller)
-    traj = read_trajectory(args.trajectory, kinematics=machine.kinematics)
-    if not traj.has_reference:
-        raise InputError("compensation needs the reference tool path columns "
-                         "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour trajectory')",
-                         source=str(args.trajectory), field="Px")
+    servo = load_servo(args.machine, args.controller)
+    traj = read_trajectory(args.trajectory, kinematics=servo.kinematics)
 
     def progress(n, summary):
         print(f"  pass {n}: predicted tip max {summary['tip_max_um']:.3f} um, orientation max "
               f"{summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    machine_actual = None
-    if args.learn and args.method == "contour":
-        if abs(traj.ts - machine.servo_period) > 1e-9 * machine.servo_period:
-            print(f"  no learning: the trajectory's sample period {traj.ts:g} s is not the "
-                  f"servo period {machine.servo_period:g} s of the virtual machine",
-                  file=sys.stderr)
-        elif traj.n_samples > AT_ONCE_SAMPLES:
-            # learning runs the whole trajectory on the virtual machine; long programs are
-            # compensated in pieces, linearly
-            print(f"  no learning: {traj.n_samples} samples are more than "
-                  f"{AT_ONCE_SAMPLES} (compensated in pieces)", file=sys.stderr)
-        else:
-            if is_closed_loop(learn_controller):
-                print(f"  learning against controller {learn_controller.name!r}, a transfer "
-                      "function without drives or friction (--learn-controller NAME: the "
-                      "controller the drives run, on this file's drives)", file=sys.stderr)
-            machine_actual = ensemble_actual(traj.t, machine, learn_controller)
-
     def learning_progress(label, summary):
         print(f"  {label} on the virtual machine: tip max {summary['tip_max_um']:.3f} um, "
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
-    learning_options = {} if machine_actual is None else dict(
-        machine_actual=machine_actual, learning_passes=args.learn,
-        learning_progress=learning_progress)
-    # long programs are compensated in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        if args.ignore_limits:
-            result = compensate_program(traj, machine.kinematics, models, method=args.method,
-                                        iterations=args.iterations, tol_linear=args.tol_linear,
-                                        tol_rotary=args.tol_rotary, progress=progress,
-                                        **learning_options)
-        else:
-            limited = compensate_keeping_limits(
-                traj, machine, args.controller,
-                learn=0 if machine_actual is None else args.learn,
-                learn_controller=learn_controller.name, method=args.method,
-                iterations=args.iterations, tol_linear=args.tol_linear,
-                tol_rotary=args.tol_rotary, learning_progress=learning_progress,
-                min_speed=args.min_speed)
-            result = limited.result
-            print(f"within the machine's limits: "
-                  + (f"slowed in {len(limited.slowdowns)} window(s), "
-                     f"+{limited.added_time:.3f} s, down to "
-                     f"{100 * min(s.speed for s in limited.slowdowns):.1f} % of the speed"
-                     if limited.slowdowns else "not slowed"))
-            if limited.uncompensated:
-                print(f"compensation left out in {len(limited.uncompensated)} window(s) where "
-                      f"slowing down to {100 * args.min_speed:g} % of the speed or more could "
-                      "not keep the limits: " + ", ".join(
-                          f"t = {a:.3f}-{b:.3f} s" for a, b in limited.uncompensated[:10]))
-    write_columns(args.output, trajectory_columns(result.trajectory), inputs=inputs)
-    print(f"{args.method} pre-compensation on {machine.name}, controller {args.controller}: "
-          f"{result.iterations} pass(es) kept")
-    print("predicted before: " + _contour_line(result.before))
-    print("predicted after:  " + _contour_line(result.after))
-    if result.learning is not None:
-        learning = result.learning
+        comp = compensate(servo, traj, method=args.method, limits=not args.ignore_limits,
+                          learn=args.learn, iterations=args.iterations,
+                          min_speed=args.min_speed, learn_controller=args.learn_controller,
+                          tol_linear=args.tol_linear, tol_rotary=args.tol_rotary,
+                          progress=progress, learning_progress=learning_progress)
+    if comp.within_limits:
+        print(f"within the machine's limits: "
+              + (f"slowed in {len(comp.slowdowns)} window(s), +{comp.added_time:.3f} s, down "
+                 f"to {100 * min(s.speed for s in comp.slowdowns):.1f} % of the speed"
+                 if comp.slowdowns else "not slowed"))
+        if comp.left_out:
+            print(f"compensation left out in {len(comp.left_out)} window(s) where slowing "
+                  f"down to {100 * args.min_speed:g} % of the speed or more could not keep "
+                  "the limits: " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
+                                             for a, b in comp.left_out[:10]))
+    write_columns(args.output, trajectory_columns(comp.commands, servo.axis_names),
+                  inputs=inputs)
+    print(f"{args.method} pre-compensation on {servo.machine.name}, controller "
+          f"{args.controller}: {comp.passes} pass(es) kept")
+    print("predicted before: " + _contour_line(comp.before))
+    print("predicted after:  " + _contour_line(comp.after))
+    if comp.learning is not None:
+        learning, learner = comp.learning, comp.learning_controller
         print(f"learned against the virtual machine with friction ({args.learn} pass(es), "
               f"{learning.draws} draw(s), {learning.machine_runs} runs): kept {learning.chosen}")
-        print(f"  virtual machine: controller {learn_controller.name} ({learn_controller.type}) "
+        print(f"  virtual machine: controller {learner.name} ({learner.type}) "
               f"on the drives of {args.machine}")
         for name, summary in (("uncompensated", learning.uncompensated),
                               ("linear compensation", learning.linear),
@@ -803,22 +761,9 @@ def run_compensate(args: argparse.Namespace) -> int:
     return 0
 
 
-def learning_controller(machine, controller, name: str | None):
-    """The controller the virtual machine runs when ``compensate`` learns: ``name`` when
-    given, else a closed loop's (``tf``) ``base``, else ``controller`` itself."""
-    from .machine.controllers import is_closed_loop
-
-    if name is not None:
-        return machine.controller(name)
-    if is_closed_loop(controller) and controller.base is not None:
-        return machine.controller(controller.base)
-    return controller
-
-
 def run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .machine.drives import AXES
     from .machine.machine_file import load_machine
     from .prediction.contour import ReferencePath, contour_errors
     from .simulation.virtual_machine import simulate
@@ -830,9 +775,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
     machine.controller(args.controller)
-    commands = read_trajectory(args.commands)
-    if args.mode == "discrete" and abs(commands.ts - machine.servo_period) > \
-            1e-6 * machine.servo_period:
+    commands = read_trajectory(args.commands, axis_names=machine.axis_names)
+    if args.mode == "discrete" and not machine.at_servo_period(commands.ts):
         raise InputError(f"sample period {commands.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s (discrete mode samples at the "
                          "servo period)", source=str(args.commands), field="t")
@@ -849,7 +793,7 @@ def run_simulate(args: argparse.Namespace) -> int:
                           friction=args.friction == "on", ff_friction=args.ff_friction == "on",
                           inertia_scale=args.inertia_scale, damping_scale=args.damping_scale)
     columns = {"t": result.t}
-    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(AXES)})
+    columns.update({axis: result.q_act[:, i] for i, axis in enumerate(machine.axis_names)})
     contour = None
     if reference_traj.has_reference:
         contour = contour_errors(ReferencePath.from_trajectory(reference_traj), result.q_act,
@@ -873,7 +817,8 @@ def run_demo(args: argparse.Namespace) -> int:
     paths = tuple(name.strip() for name in args.paths.split(",") if name.strip())
     progress = ProgressLine(sys.stderr)
     try:
-        result = demo_run(args.report, paths=paths, iterations=args.iterations, progress=progress)
+        result = demo_run(args.report, paths=paths, iterations=args.iterations,
+                          machine=args.machine, progress=progress)
     finally:
         progress.close()
     print(f"contour errors on {result.machine.name}: tool tip in um, orientation in mrad "
@@ -981,18 +926,26 @@ def run_excite(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
-    axes = tuple(dict.fromkeys(args.axes.upper()))
-    unknown = [a for a in axes if a not in AXES]
-    if unknown or not axes:
-        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of XYZAC",
-                         field="axes")
+    letters = tuple(machine.axis_names)
+    given_letters = tuple(dict.fromkeys((args.axes or "".join(letters)).upper()))
+    if "A" in given_letters and "A" not in letters and letters[3] == "B":
+        from .errors import notice
+
+        notice("--axes: A read as the B axis of this B-C machine (the old spelling; write B)")
+        given_letters = tuple(dict.fromkeys("B" if a == "A" else a for a in given_letters))
+    unknown = [a for a in given_letters if a not in letters]
+    if unknown or not given_letters:
+        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of "
+                         f"{''.join(letters)}", field="axes")
+    # the library names the q slots X Y Z A C on every machine
+    axes = tuple(AXES[letters.index(a)] for a in given_letters)
     given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
     travel = {a: value for a, value in given.items() if value is not None}
     traj = excitation_trajectory(machine, travel=travel, safety=args.safety, axes=axes)
     write_excitation(args.output, traj, machine, inputs=input_files(args.machine))
     print(f"excitation for {machine.name}: {traj.n_samples} samples ({traj.duration:.1f} s), "
-          f"axes {''.join(axes)} one at a time then together, within {args.safety:g} of the "
-          "drive limits")
+          f"axes {''.join(given_letters)} one at a time then together, within {args.safety:g} "
+          "of the drive limits")
     print(f"wrote {args.output} in {time.perf_counter() - start:.2f} s")
     return 0
 

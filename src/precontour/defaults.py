@@ -15,9 +15,12 @@ import tomllib
 from dataclasses import dataclass
 from importlib import resources
 
-#: Built-in machines: the paper's, and LinuxCNC's two trunnion-table simulator configurations
-#: (``configs/sim/axis/vismach/5axis/table-rotary-tilting``); files in ``machine/data``.
-BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt")
+#: Built-in machines: the paper's, LinuxCNC's two trunnion-table simulator configurations
+#: (``configs/sim/axis/vismach/5axis/table-rotary-tilting``), a head-table B-C machine,
+#: LinuxCNC's head-head bridge mill (``configs/sim/axis/vismach/5axis/bridgemill``) and a
+#: head-table A-C machine as a generic kinematic chain; files in ``machine/data``.
+BUILTIN_MACHINES: tuple[str, ...] = ("zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt",
+                                     "head-table-bc", "linuxcnc-bridgemill", "head-table-ac")
 #: Servo period of a machine file that gives none, s.
 DEFAULT_SERVO_PERIOD = 0.001
 #: Names of the built-in test paths (:func:`precontour.trajectory.builtin_path`).

@@ -27,9 +27,12 @@ from .files import atomic_write, check_input_file, check_outputs, refuse_non_tex
 from .machine.kinematics import angle_between, normalize_orientations
 from .trajectory.sampled import MIN_SAMPLES, Trajectory, check_uniform_time
 
-#: Axis columns are named X,Y,Z,A,C on every machine (a public format); on a B-C machine
-#: column A holds the B axis (slot 3 of q).
+#: Axis columns are named after the machine's axes: t,X,Y,Z,A,C on an A-C machine, t,X,Y,Z,B,C
+#: on a B-C machine (``Machine.axis_names``; the q slot 3 holds the tilt axis either way).
+#: A B-C machine still reads the old spelling, column A holding B, with a one-line notice.
 TRAJECTORY_COLUMNS: tuple[str, ...] = ("t",) + AXES
+#: Letters of rotary axis columns.
+ROTARY_COLUMNS: tuple[str, ...] = ("A", "B", "C")
 REFERENCE_COLUMNS: tuple[str, ...] = ("Px", "Py", "Pz", "Oi", "Oj", "Ok")
 #: Optional column: source line of the NC-program block executing at each sample.
 LINE_COLUMN = "line"
@@ -106,9 +109,13 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
 
 
 def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinematics=None,
-                    tolerance: tuple[float, float] = REFERENCE_TOLERANCE) -> Trajectory:
-    """Read a trajectory file with columns ``t,X,Y,Z,A,C`` (s, mm, rad) and, if all present,
-    the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional program ``line`` (whole numbers).
+                    tolerance: tuple[float, float] = REFERENCE_TOLERANCE,
+                    axis_names: Sequence[str] | None = None) -> Trajectory:
+    """Read a trajectory file with columns ``t,X,Y,Z,A,C`` (s, mm, rad; ``B`` in place of
+    ``A`` on a B-C machine: ``axis_names``, default the ``kinematics``' own, else either
+    letter) and, if all present, the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional
+    program ``line`` (whole numbers). A B-C machine's file with the old column ``A`` is read
+    as B, with one notice.
 
     Time must be uniformly sampled, with at least ``min_samples`` samples; values within
     :data:`MAX_TIME`, :data:`MAX_LINEAR`, :data:`MAX_ROTARY`. A step of C by a multiple of
@@ -117,11 +124,16 @@ def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinemat
     within ``tolerance`` = (mm, rad) on every row (see :data:`REFERENCE_TOLERANCE`).
     """
     source = str(path)
-    columns = read_columns(path, TRAJECTORY_COLUMNS, REFERENCE_COLUMNS + (LINE_COLUMN,))
+    if axis_names is None and kinematics is not None:
+        axis_names = getattr(kinematics, "axis_names", None)
+    columns = read_columns(path, ("t", "X", "Y", "Z"),
+                           ROTARY_COLUMNS + REFERENCE_COLUMNS + (LINE_COLUMN,))
+    names = _axis_columns(columns, axis_names, source)
     _check_magnitudes(columns, source)
     check_uniform_time(columns["t"], source=source, min_samples=min_samples)
-    columns["C"] = _unwrap_c(columns["C"], source)
-    q = np.stack([columns[axis] for axis in AXES], axis=1)
+    if "C" in columns:
+        columns["C"] = _unwrap_c(columns["C"], source)
+    q = np.stack([columns[axis] for axis in names], axis=1)
     P = O = None
     if all(name in columns for name in REFERENCE_COLUMNS):
         P = np.stack([columns[name] for name in REFERENCE_COLUMNS[:3]], axis=1)
@@ -140,6 +152,30 @@ def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinemat
     if kinematics is not None and traj.has_reference:
         check_reference(traj, kinematics, source=source, tolerance=tolerance)
     return traj
+
+
+def _axis_columns(columns: dict, axis_names: Sequence[str] | None, source: str
+                  ) -> tuple[str, ...]:
+    """The five column names that hold q, in q order: the machine's ``axis_names`` (its old
+    spelling ``A`` for a B-C machine's B, with a notice); without names, X Y Z, A or B, C."""
+    expected = tuple(axis_names) if axis_names is not None else None
+    if expected is None:
+        tilt = [name for name in ("A", "B") if name in columns]
+        if len(tilt) == 2:
+            raise InputError("both columns A and B: which one is the tilt axis? Give the "
+                             "machine (--machine) or keep one", source=source, field="B")
+        expected = ("X", "Y", "Z", tilt[0] if tilt else "A", "C")
+    names = list(expected)
+    if names[3] == "B" and "B" not in columns and "A" in columns and names[4] != "A":
+        notice(f"{source}: column A read as the B axis of this B-C machine (the old "
+               "spelling; write B)")
+        names[3] = "A"
+    missing = [name for name in names if name not in columns]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}; the file has "
+                         f"{', '.join(columns)} (the axes: {','.join(expected)})",
+                         source=source, field=missing[0])
+    return tuple(names)
 
 
 def check_reference(traj: Trajectory, kinematics, *, source: str | None = None,
@@ -166,7 +202,7 @@ def _check_magnitudes(columns: Mapping[str, np.ndarray], source: str) -> None:
     for name, values in columns.items():
         if name == LINE_COLUMN:
             continue  # source line numbers: checked as whole numbers below
-        limit = (MAX_TIME if name == "t" else MAX_ROTARY if name in ("A", "C")
+        limit = (MAX_TIME if name == "t" else MAX_ROTARY if name in ROTARY_COLUMNS
                  else MAX_LINEAR)
         big = np.abs(values) > limit
         if big.any():
@@ -189,11 +225,13 @@ def _unwrap_c(c: np.ndarray, source: str) -> np.ndarray:
     return np.unwrap(c)
 
 
-def trajectory_columns(traj: Trajectory) -> dict[str, np.ndarray]:
-    """The columns of a trajectory file: ``t,X,Y,Z,A,C`` and, if present, ``Px..Ok`` and
-    ``line`` (written as a float column, like the others)."""
+def trajectory_columns(traj: Trajectory, axis_names: Sequence[str] = AXES
+                       ) -> dict[str, np.ndarray]:
+    """The columns of a trajectory file: ``t`` and the machine's ``axis_names`` (``X,Y,Z,A,C``
+    by default, ``X,Y,Z,B,C`` on a B-C machine) and, if present, ``Px..Ok`` and ``line``
+    (written as a float column, like the others)."""
     columns = {"t": traj.t}
-    columns.update({axis: traj.q[:, i] for i, axis in enumerate(AXES)})
+    columns.update({axis: traj.q[:, i] for i, axis in enumerate(axis_names)})
     if traj.has_reference:
         columns.update({name: traj.P[:, i] for i, name in enumerate(REFERENCE_COLUMNS[:3])})
         columns.update({name: traj.O[:, i] for i, name in enumerate(REFERENCE_COLUMNS[3:])})

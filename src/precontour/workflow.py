@@ -37,7 +37,7 @@ from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
 from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
-from .toolpath.writers import (GcodeProgram, ProgramInfo, axis_tolerances, gcode_program,
+from .toolpath.writers import (GcodeProgram, ProgramInfo, gcode_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
 from .trajectory.program import check_program_samples, program_trajectory
@@ -46,9 +46,6 @@ from .trajectory.sampled import Trajectory
 
 #: Extensions a G-code output may have (those the readers take as G-code).
 GCODE_SUFFIXES: tuple[str, ...] = EXTENSIONS["gcode"]
-#: Relative difference between a command file's sampling period and the machine's servo
-#: period tolerated for a halstreamer file (one line per servo period).
-SERVO_PERIOD_RTOL = 1e-6
 
 #: Samples from which the two virtual-machine runs go to two processes when ``workers`` is
 #: None. The compiled virtual machine already runs the five axes on two threads, so on this
@@ -209,6 +206,24 @@ def largest_error(errors: np.ndarray, t: np.ndarray, line: np.ndarray | None, *,
 
 
 @dataclass(frozen=True)
+class WorseLine:
+    """A source line where the compensated commands did worse than the uncompensated ones
+    (:meth:`RunResult.worse_lines`): its first sample's time (s) and the max tip (mm) and
+    orientation (rad) errors there, compensated then uncompensated."""
+
+    line: int | None
+    t: float
+    tip: tuple[float, float]
+    orientation: tuple[float, float]
+
+    def format(self, where: str = "line") -> str:
+        at = f"{where} {self.line}, " if self.line is not None else ""
+        return (f"{at}t = {self.t:.3f} s: tip {1e3 * self.tip[0]:.3g} um against "
+                f"{1e3 * self.tip[1]:.3g} um, orientation {1e6 * self.orientation[0]:.3g} urad "
+                f"against {1e6 * self.orientation[1]:.3g} urad")
+
+
+@dataclass(frozen=True)
 class RunResult:
     """Everything ``run`` computed.
 
@@ -258,6 +273,32 @@ class RunResult:
                                               ("uncompensated", self.simulated_before))
                      for quantity in ("tip", "orientation"))
 
+    def worse_lines(self) -> tuple[WorseLine, ...]:
+        """The source lines (rows of CL data) where the compensated commands' simulated max
+        tip or orientation error exceeds the uncompensated commands' there by more than the
+        block margins (:mod:`.compensation.blocks`: 0.1 um / 1 urad, or 5 %), on the realistic
+        virtual machine, largest excess first. Learning (``--learn``) makes its command
+        nowhere worse on its ensemble; without it, this says where compensation hurts."""
+        from .compensation.blocks import (ORIENTATION_MARGIN, TIP_MARGIN, block_starts, judge,
+                                          worse_blocks)
+
+        reference = self.limited.reference
+        starts = block_starts(reference.n_samples, reference.ts, self.limited.line)
+        before = judge([self.simulated_before], starts)
+        after = judge([self.simulated_after], starts)
+        bad = np.flatnonzero(worse_blocks(after, before))
+        excess = np.maximum((after.tip_max[0] - before.tip_max[0]) / TIP_MARGIN,
+                            (after.orientation_max[0] - before.orientation_max[0])
+                            / ORIENTATION_MARGIN)
+        line = self.limited.line
+        return tuple(
+            WorseLine(line=None if line is None else int(line[starts[b]]),
+                      t=float(reference.t[starts[b]]),
+                      tip=(float(after.tip_max[0, b]), float(before.tip_max[0, b])),
+                      orientation=(float(after.orientation_max[0, b]),
+                                   float(before.orientation_max[0, b])))
+            for b in bad[np.argsort(-excess[bad], kind="stable")])
+
     def table(self) -> str:
         """The end-of-run table: contour errors before and after, duration, blocks."""
         rows = [("predicted", "before", self.predicted_before),
@@ -279,6 +320,17 @@ class RunResult:
                          f"mean {_reduction(before.mean(), after.mean())}")
         lines.append("largest simulated errors, where:")
         lines += ["  " + largest.format() for largest in self.largest_errors()]
+        worse = self.worse_lines()
+        where = "line" if toolpath_format(self.source) == "gcode" else "row"
+        if worse:
+            lines.append(f"compensated worse than uncompensated on {len(worse)} {where}(s) "
+                         "(beyond 0.1 um / 1 urad or 5 %), simulated, largest first:")
+            lines += ["  " + w.format(where) for w in worse[:5]]
+            if len(worse) > 5:
+                lines.append(f"  ... and {len(worse) - 5} more")
+        else:
+            lines.append(f"no {where} worse than uncompensated (beyond 0.1 um / 1 urad or "
+                         "5 %), simulated")
         duration = self.commands.duration
         planned = self.planned.duration
         slow = self.limited.slowdowns
@@ -412,7 +464,7 @@ def run_program(program: str | Path, outputs: RunOutputs, *, machine: str | Path
 
     inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
     check_run_outputs(outputs, inputs)
-    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     _check_feed_options(contour_tolerance, feed_scale_max, feed_scale_min)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
@@ -525,7 +577,7 @@ def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
 
 def _can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
     """Whether learning against the virtual machine can run on ``reference``; says why not."""
-    if abs(reference.ts - machine_obj.servo_period) > 1e-9 * machine_obj.servo_period:
+    if not machine_obj.at_servo_period(reference.ts):
         notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
                f"period {machine_obj.servo_period:g} s of the virtual machine")
         return False
@@ -658,7 +710,8 @@ def write_run_outputs(result: RunResult, outputs: RunOutputs,
             # errors name can be looked up in it
             table = commands if result.limited.line is None else replace(
                 commands, line=result.limited.line)
-            written.append(write_columns(outputs.commands, trajectory_columns(table),
+            written.append(write_columns(outputs.commands,
+                                         trajectory_columns(table, result.machine.axis_names),
                                          inputs=inputs))
     return written
 
@@ -704,12 +757,12 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     inputs = [commands_path] + ([machine] if Path(str(machine)).exists() else [])
     suffixes = {"gcode": GCODE_SUFFIXES, "halstreamer": None}.get(format, (f".{format}",))
     check_output_path(output, inputs=inputs, suffixes=suffixes)
-    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    traj = read_trajectory(commands_path)
-    if format not in ("gcode", "halstreamer"):
-        write_columns(output, trajectory_columns(traj), inputs=inputs)
-        return ExportResult(output, format, traj.n_samples, None)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     machine_obj = load_machine(machine)
+    traj = read_trajectory(commands_path, axis_names=machine_obj.axis_names)
+    if format not in ("gcode", "halstreamer"):
+        write_columns(output, trajectory_columns(traj, machine_obj.axis_names), inputs=inputs)
+        return ExportResult(output, format, traj.n_samples, None)
     if controller:
         machine_obj.controller(controller)  # an unknown name is an error, as elsewhere
     limits = AxisLimits.from_machine(machine_obj)
@@ -723,7 +776,7 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     info = ProgramInfo(machine=machine_obj.name, controller=controller,
                        method="exported commands", source=str(commands_path))
     if format == "halstreamer":
-        if abs(traj.ts - machine_obj.servo_period) > SERVO_PERIOD_RTOL * machine_obj.servo_period:
+        if not machine_obj.at_servo_period(traj.ts):
             raise InputError(f"sampled every {traj.ts:.6g} s, but a halstreamer file needs one "
                              f"line per servo period ({machine_obj.servo_period:g} s of "
                              f"{machine_obj.name})", source=str(commands_path), field="t")

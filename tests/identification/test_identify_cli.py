@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from precontour import load_machine, simulate
+from precontour import load_machine
+from precontour.simulation import simulate
 from precontour.cli import main
 from precontour.machine.drives import AXES
 from precontour.tables import read_trajectory, write_columns
@@ -97,7 +98,7 @@ def test_compensate_learns_against_the_identified_drives(tmp_path, capsys):
     simulate(..., "pid-high", REALISTIC) on that machine's draws, computed here
     independently, not those of the frictionless tf loop. (--ignore-limits: on the
     trajectory's own timing, which the errors here are computed on.)"""
-    from precontour import ReferencePath, contour_errors
+    from precontour.prediction import ReferencePath, contour_errors
     from precontour.simulation.ensemble import MachineEnsemble
     from precontour.simulation.virtual_machine import REALISTIC
 

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import scipy.signal as sig
 
-from precontour import builtin_path, generate_trajectory, predict_tracking, simulate
+from precontour import builtin_path, generate_trajectory
+from precontour.prediction import predict_tracking
+from precontour.simulation import simulate
 from precontour.identification.tf_fit import (NotIdentifiable, identify_axis, linear_regime, stabilize,
                                               tustin_to_continuous)
 from precontour.machine.drives import LinearErrorModel

@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from precontour import simulate
+from precontour.simulation import simulate
 from precontour.identification import excitation_trajectory
 from precontour.identification.servo_log import ServoLog
 from precontour.machine.drives import AXES

@@ -7,7 +7,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from precontour.errors import InputError
-from precontour.machine.kinematics import (ACTrunnion, XYZACTrunnion, XYZBCTrunnion,
+from precontour.machine.kinematics import (ACTrunnion, XYZACTrunnion, XYZBCHeadHead,
+                                           XYZBCHeadTable, XYZBCTrunnion,
                                            normalize_orientations)
 from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
 
@@ -153,6 +154,20 @@ ALL_KINEMATICS = {
     "xyzbc-trt offsets -+": XYZBCTrunnion(-9.0, 4.0, -25.0, -20.0, -15.0, 60.0, -1.0, 1.0),
     "xyzbc-trt limited": replace(XYZBC_SIM, b_min=np.radians(-100), b_max=np.radians(50)),
 }
+#: The head families: a tilting B head over a C table, and LinuxCNC 5axiskins's B-C fork head.
+HEAD_TABLE = XYZBCHeadTable(x_rot_point=0.0, y_rot_point=0.0, z_rot_point=0.0,
+                            pivot_length=150.0, tool_offset=50.0)
+BRIDGEMILL = XYZBCHeadHead(pivot_length=250.0, tool_offset=0.0)
+HEAD_KINEMATICS = {
+    "head-table iso": HEAD_TABLE,
+    "head-table offsets -+": XYZBCHeadTable(35.0, -12.0, 7.5, 120.0, 80.0, -1.0, 1.0),
+    "head-table limited": replace(HEAD_TABLE, b_min=np.radians(-110), b_max=np.radians(30)),
+    "head-head 5axiskins": BRIDGEMILL,
+    "head-head tool ++": XYZBCHeadHead(180.0, 65.0, 1.0, 1.0),
+    "head-head limited": replace(BRIDGEMILL, b_min=np.radians(-120), b_max=np.radians(40)),
+}
+TABLE_KINEMATICS = dict(ALL_KINEMATICS)
+ALL_KINEMATICS.update(HEAD_KINEMATICS)
 KINEMATICS_PARAMS = pytest.mark.parametrize("kin", list(ALL_KINEMATICS.values()),
                                             ids=list(ALL_KINEMATICS))
 
@@ -195,12 +210,13 @@ poses = st.tuples(st.floats(-300, 300, **finite), st.floats(-300, 300, **finite)
                   st.floats(-20, 20, **finite))
 
 
-@KINEMATICS_PARAMS
+@pytest.mark.parametrize("kin", list(TABLE_KINEMATICS.values()), ids=list(TABLE_KINEMATICS))
 @settings(max_examples=150, deadline=None)
 @given(q=poses)
 def test_tool_axis_is_dP_dZ(kin, q):
     # O is the direction in which the spindle axis Z moves the tip (spec section 1); P is
-    # affine in Z, so a unit step of Z moves the tip by exactly O
+    # affine in Z, so a unit step of Z moves the tip by exactly O. (On a head Z moves the tip
+    # along z whatever the tilt: tests/machine/test_families.py checks O = -dP/dt there.)
     q = np.array(q)
     P, O = kin.forward(q)
     P_up, _ = kin.forward(q + [0, 0, 1.0, 0, 0])
@@ -252,7 +268,8 @@ def test_orientation_jacobian_matches_central_differences(kin):
     np.testing.assert_allclose(jac[..., 1], d_c, atol=1e-9)
 
 
-@pytest.mark.parametrize("kin", [XYZAC_SIM, XYZBC_SIM], ids=["xyzac", "xyzbc"])
+@pytest.mark.parametrize("kin", [XYZAC_SIM, XYZBC_SIM, HEAD_TABLE, BRIDGEMILL],
+                         ids=["xyzac", "xyzbc", "head-table", "head-head"])
 def test_tilt_sign_keeps_the_path_inside_the_travel(kin):
     limited = kin.with_tilt_limits(np.radians(-100), np.radians(50))
     assert limited.tilt_limits == (np.radians(-100), np.radians(50))

@@ -20,7 +20,8 @@ from precontour.machine.template import (CONTROLLER_KEYS, KINEMATICS_KEYS, machi
                                          template_types)
 
 BUILTIN_OF_TYPE = {"ac-trunnion": "zhang2013", "xyzac-trt": "linuxcnc-xyzac-trt",
-                   "xyzbc-trt": "linuxcnc-xyzbc-trt"}
+                   "xyzbc-trt": "linuxcnc-xyzbc-trt", "xyzbc-head-table": "head-table-bc",
+                   "xyzbc-head-head": "linuxcnc-bridgemill", "chain": "head-table-ac"}
 
 
 def test_every_kinematics_and_controller_type_is_described():

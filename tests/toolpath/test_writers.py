@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 
 from precontour.errors import InputError
 from precontour.toolpath.writers import (DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, ProgramInfo,
-                                         axis_tolerances, decimate, gcode_program,
+                                         gcode_tolerances, decimate, gcode_program,
                                          halstreamer_lines, streamer_depth)
 
 gcodeparser = pytest.importorskip("gcodeparser")
@@ -85,7 +85,7 @@ def test_written_gcode_reproduces_commands_within_tolerance():
     assert program.n_blocks < t.size / 3
     assert np.diff(times).min() >= TS * (1 - 1e-9)
     # The tolerance is used: tightening it tenfold needs more blocks.
-    finer = gcode_program(t, q, tolerance=axis_tolerances(1e-4, 1e-6))
+    finer = gcode_program(t, q, tolerance=gcode_tolerances(1e-4, 1e-6))
     assert finer.n_blocks > program.n_blocks
 
 
@@ -171,9 +171,9 @@ def test_decimate_against_brute_force(seed, n, tol):
 
 def test_tolerance_must_exceed_rounding():
     with pytest.raises(InputError, match="tol"):
-        axis_tolerances(1e-6, 1e-5)
+        gcode_tolerances(1e-6, 1e-5)
     with pytest.raises(InputError, match="tol"):
-        axis_tolerances(1e-3, float("nan"))
+        gcode_tolerances(1e-3, float("nan"))
 
 
 def _streamer_read(text, n_pins):
@@ -207,7 +207,7 @@ def test_any_commands_round_trip_within_tolerance(seed, n, tol_linear, tol_rotar
     rng = np.random.default_rng(seed)
     t = np.arange(n) * TS
     q = np.cumsum(rng.normal(scale=[0.01, 0.01, 0.01, 1e-4, 1e-4], size=(n, 5)), axis=0)
-    tolerance = axis_tolerances(tol_linear, tol_rotary)
+    tolerance = gcode_tolerances(tol_linear, tol_rotary)
     program = gcode_program(t, q, tolerance=tolerance)
     times, points = _read_back(program.text)
     assert times[-1] == pytest.approx(t[-1], abs=1e-9)

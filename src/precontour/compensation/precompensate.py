@@ -74,8 +74,8 @@ def compensation_tolerances(tol_linear: float | None = None,
             COMPENSATION_TOL_ROTARY if tol_rotary is None else tol_rotary)
 
 
-def axis_tolerances(tol_linear: float | None = None,
-                    tol_rotary: float | None = None) -> np.ndarray:
+def compensation_axis_tolerances(tol_linear: float | None = None,
+                                 tol_rotary: float | None = None) -> np.ndarray:
     """:func:`compensation_tolerances` per axis X, Y, Z, A, C, shape (5,)."""
     linear, rotary = compensation_tolerances(tol_linear, tol_rotary)
     return np.array([linear] * 3 + [rotary] * 2)
@@ -210,7 +210,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         else:
             break
     _, q_best, after_best, passes = best
-    idle_tolerance = axis_tolerances(tol_linear, tol_rotary)
+    idle_tolerance = compensation_axis_tolerances(tol_linear, tol_rotary)
 
     def hold(q):
         return hold_idle_axes(traj.q, q, idle_tolerance) if hold_idle else q

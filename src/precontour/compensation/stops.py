@@ -32,7 +32,7 @@ tracking-error pre-compensation, or to the planned command), and the report says
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -41,7 +41,8 @@ from scipy.ndimage import gaussian_filter1d
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..errors import PrecontourError
 from ..files import check_signals
-from .blocks import (ORIENTATION_WEIGHT, SUMMARY_KEYS, Fallback, block_starts, fall_back,
+from .blocks import (ORIENTATION_WEIGHT, PROGRAM_MARGIN, SUMMARY_KEYS, Fallback, block_starts,
+                     fall_back,
                      TIE, best, judge, not_finite, splice_errors, whole_ok, worse_blocks)
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
@@ -440,6 +441,30 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
         kept = pool[best([entry[2] for entry in pool])]
         fallback = next((f for e, f in repaired if e is kept), None)
+        if kept[1] is q_reference:
+            # Nothing is nowhere worse within the block margins: before giving the
+            # uncompensated command back, the second chance of blocks.PROGRAM_MARGIN (a
+            # fallback's blend on a curved path can itself leave the neighbours a few % worse)
+            loose = [entry for entry in accepted if entry[1] is not q_reference
+                     and not worse_blocks(entry[2], reference, PROGRAM_MARGIN).any()]
+            for i in ([] if loose else order[:REPAIRED_CANDIDATES]):
+                candidate, q_try, judged_try = accepted[i]
+                q_fixed, judged, report_try = fall_back(
+                    q_try, judged_try, q_reference, reference,
+                    lambda q: judged_safely(q)[0], starts, ts, fallbacks=fallbacks,
+                    admissible=admissible, line=line, t0=t0, program_margin=PROGRAM_MARGIN)
+                if not report_try.everywhere:
+                    label = (f"{candidate.label}, fell back in {len(report_try.blocks)} "
+                             "block(s)")
+                    loose.append((LearningCandidate(label, judged.worst, True, True,
+                                                    judged.median), q_fixed, judged))
+                    repaired.append((loose[-1], report_try))
+            if loose:
+                kept = loose[best([entry[2] for entry in loose])]
+                kept = (replace(kept[0], label=f"{kept[0].label}, within "
+                                               f"{100 * PROGRAM_MARGIN:g} % of the "
+                                               "uncompensated max"),) + kept[1:]
+                fallback = next((f for e, f in repaired if e[1] is kept[1]), None)
         fallback_runs = runs - runs_before
     chosen, q_kept, judged = kept
     report = LearningReport(chosen=chosen.label, uncompensated=reference.worst,

@@ -34,7 +34,7 @@ from ..prediction.contour import ReferencePath, contour_errors
 from .blend import TAPER_HOLD, TAPER_WIDTH, taper_corrections
 from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
-from .precompensate import (CompensationResult, axis_tolerances, compensate,
+from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
 from .stops import LIMITED_SMOOTHING, MachineActual, learn_at_stops
 
@@ -285,7 +285,7 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
         return check_limits(q, ts, limits, t0=t0).ok
 
     q_start = limited.result.trajectory.q
-    idle_tolerance = axis_tolerances()
+    idle_tolerance = compensation_axis_tolerances()
 
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)

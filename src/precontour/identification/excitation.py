@@ -336,7 +336,7 @@ def write_excitation(path, traj: Trajectory, machine, *, inputs=()) -> None:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in TABLE_SUFFIXES:
-        write_columns(path, trajectory_columns(traj), inputs=inputs)
+        write_columns(path, trajectory_columns(traj, machine.axis_names), inputs=inputs)
         return
     if suffix not in PROGRAM_SUFFIXES:
         raise InputError(f"unsupported output type {suffix or '(none)'!r}; use one of "

@@ -104,7 +104,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
     ctrl = default_base_controller(base) if base_controller is None else base.controller(base_controller)
     base_models = ctrl.error_models(base.drives)
     ts = log.period
-    if abs(ts - base.servo_period) > 1e-6 * base.servo_period:
+    if not base.at_servo_period(ts):
         # Not an error: the model is continuous; say it in the notes.
         period_note = (f"log sample period {ts * 1e3:.6g} ms differs from the machine's servo "
                        f"period {base.servo_period * 1e3:.6g} ms")

@@ -34,6 +34,10 @@ from .kinematics import KINEMATICS_TYPES
 # BUILTIN_MACHINES, the names of the built-in machines, is defined in precontour.defaults.
 
 
+#: Relative tolerance of :meth:`Machine.at_servo_period`.
+SERVO_PERIOD_RTOL = 1e-6
+
+
 @dataclass(frozen=True)
 class Machine:
     """A five-axis machine: kinematics, five drives and named controllers."""
@@ -54,6 +58,13 @@ class Machine:
             raise MachineFileError(
                 f"unknown controller {name!r}; this machine has {', '.join(self.controllers)}",
                 source=self.source) from None
+
+    def at_servo_period(self, ts: float) -> bool:
+        """Whether samples every ``ts`` s are one per servo period, within
+        :data:`SERVO_PERIOD_RTOL` (sample periods read back from text time stamps differ from
+        it by round-off). The one check of it, for the virtual machine's discrete mode,
+        learning, identification, the stream and ``compare``."""
+        return abs(ts - self.servo_period) <= SERVO_PERIOD_RTOL * self.servo_period
 
     @property
     def axis_names(self) -> tuple[str, ...]:

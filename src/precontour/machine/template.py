@@ -58,7 +58,48 @@ KINEMATICS_KEYS: dict[str, tuple[tuple[str, str, str], ...]] = {
     ),
     "xyzac-trt": _linuxcnc_keys("xyzac-trt-kins", "a", "y"),
     "xyzbc-trt": _linuxcnc_keys("xyzbc-trt-kins", "b", "x"),
+    "xyzbc-head-table": (
+        ("x_rot_point", "mm", "C axis centre in the machine frame, x"),
+        ("y_rot_point", "mm", "C axis centre in the machine frame, y"),
+        ("z_rot_point", "mm", "height of the workpiece origin on the C axis"),
+        ("pivot_length", "mm", "B pivot to the spindle nose (gauge line), along the tool axis"),
+        ("tool_offset", "mm", "tool length, spindle nose to tip"),
+        ("b_direction", "", "+1 or -1, the sense of rotation of the B head: +1 turns the tool "
+                            "right-handed about +y (ISO 841)"),
+        ("c_direction", "", "+1 or -1, the sense of rotation of the C table: -1 turns the table "
+                            "left-handed about +z, the tool right-handed relative to the part "
+                            "(ISO 841)"),
+    ),
+    "xyzbc-head-head": (
+        ("pivot_length", "mm", "pivot of the B and C axes to the spindle nose (gauge line), "
+                               "along the tool axis (HAL pin 5axiskins.pivot-length is this "
+                               "plus the tool length)"),
+        ("tool_offset", "mm", "tool length, spindle nose to tip (motion.tooloffset.z)"),
+        ("b_direction", "", "+1 or -1, the sense of rotation of B: -1 is 5axiskins's (the tool "
+                            "tilts towards -x at C = 0 for B > 0)"),
+        ("c_direction", "", "+1 or -1, the sense of rotation of C: +1 is 5axiskins's "
+                            "(right-handed about +z)"),
+    ),
+    "chain": (
+        ("tool_offset", "mm", "tool length: at the zero pose the tip is this far below the "
+                              "spindle nose, the tool along +z"),
+        ("linear_senses", "", "optional: +1 or -1 for X, Y, Z, -1 where the axis moves the "
+                              "table, i.e. the tool the other way (default [1, 1, 1])"),
+        ("workpiece_origin", "mm", "optional: origin of the workpiece frame in the machine "
+                                   "frame at the zero pose; it turns with the table's axes "
+                                   "(default [0, 0, 0])"),
+    ),
 }
+#: Keys of a chain's rotary axis tables, ``[kinematics.A]`` (or B) and ``[kinematics.C]``.
+CHAIN_AXIS_KEYS: tuple[tuple[str, str, str], ...] = (
+    ("carried_by", "", "table (the axis turns the part) or head (it turns the tool); on a "
+                       "table C carries the part and the tilt carries C, on a head C carries "
+                       "the tilt"),
+    ("direction", "", "unit vector of the axis, +-x for A, +-y for B, +-z for C: the command "
+                      "turns right-handed about it"),
+    ("point", "mm", "a point of the axis line at the zero pose: in the machine frame on a "
+                    "table, relative to the spindle nose on a head"),
+)
 
 #: ``[drives.<axis>]`` keys: (key, unit on a linear axis, unit on a rotary axis, meaning).
 DRIVE_KEYS: tuple[tuple[str, str, str, str], ...] = (
@@ -179,7 +220,12 @@ def machine_template(kinematics: str) -> str:
     out.line("[kinematics]")
     kin = dict(data["kinematics"])
     out.entry("type", kin.pop("type"), f"kinematics type: one of {', '.join(KINEMATICS_KEYS)}")
+    axes = {key: kin.pop(key) for key in list(kin) if isinstance(kin[key], dict)}
     _plain_table(out, kin, KINEMATICS_KEYS[kinematics], "[kinematics]")
+    for letter, axis in axes.items():
+        out.blank()
+        out.line(f"[kinematics.{letter}]")
+        _plain_table(out, dict(axis), CHAIN_AXIS_KEYS, f"[kinematics.{letter}]")
     for axis, drive in data["drives"].items():
         out.blank()
         out.line(f"[drives.{axis}]")

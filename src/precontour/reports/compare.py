@@ -525,7 +525,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
                 sliding: str | None = "smc", ppi: str | None = "p-pi-high",
                 pids: Sequence[str] = ("pid-high", "pid-low"),
                 model_errors: Sequence[float] = DEFAULT_MODEL_ERRORS,
-                progress: Progress | None = None) -> CompareResult:
+                progress: Progress | None = None) -> tuple[CompareResult, StepCounter]:
     """Compare controllers and compensation methods on the realistic virtual machine (the
     paper's Figs. 11-16 and the claims' measured answers); the report folder is written by
     :func:`precontour.reports.compare_report.run_compare`.
@@ -668,12 +668,12 @@ def _load_source(builtin, trajectory, machine: Machine) -> tuple[Trajectory, str
         traj, source = trajectory, "trajectory"
     else:
         source = str(trajectory)
-        traj = read_trajectory(trajectory)
+        traj = read_trajectory(trajectory, axis_names=machine.axis_names)
     if not traj.has_reference:
         raise InputError("the comparison needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour "
                          "trajectory')", source=source, field="Px")
-    if abs(traj.ts - machine.servo_period) > 1e-6 * machine.servo_period:
+    if not machine.at_servo_period(traj.ts):
         raise InputError(f"sample period {traj.ts:.9g} s differs from the machine's servo "
                          f"period {machine.servo_period:.9g} s", source=source, field="t")
     if not isinstance(trajectory, Trajectory):

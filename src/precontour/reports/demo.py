@@ -142,7 +142,7 @@ def demo_file_names(paths, controllers) -> dict[str, str]:
 def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
              controllers: tuple[str, ...] = ("pid-high", "pid-low"), iterations: int = 1,
              machine: str | Path | Machine = "zhang2013",
-             progress: Progress | None = None) -> DemoResult:
+             progress: Progress | None = None) -> tuple[DemoResult, StepCounter]:
     """Run the paper's evaluation on the virtual machine (the report is written by
     :func:`precontour.reports.demo_report.run_demo`).
 

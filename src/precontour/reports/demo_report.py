@@ -213,7 +213,7 @@ def _axis_scale(axis: str) -> tuple[float, str]:
 
 
 def plot_path(traj: "Trajectory", *, title: str = "", n_arrows: int = 40,
-              arrow_length: float = 15.0) -> Figure:
+              arrow_length: float = 15.0, axis_names: Sequence[str] = AXES) -> Figure:
     """Fig. 8 of the paper: the reference tool tip in 3-D with tool orientations (left) and
     the five axis commands over time (right).
 
@@ -225,6 +225,8 @@ def plot_path(traj: "Trajectory", *, title: str = "", n_arrows: int = 40,
         About how many orientation vectors to draw.
     arrow_length : float
         Drawn length of an orientation vector, mm.
+    axis_names : sequence of str
+        The machine's five axis letters (``Machine.axis_names``: B in slot 3 on B-C machines).
     """
     if not traj.has_reference:
         raise ValueError("plot_path needs a trajectory with its reference tool path P, O")
@@ -256,7 +258,7 @@ def plot_path(traj: "Trajectory", *, title: str = "", n_arrows: int = 40,
     ax3.set_title("tool path (workpiece frame)", fontsize=10)
     units = ["mm", "mm", "mm", "rad", "rad"]
     ax = None
-    for i, axis in enumerate(AXES):
+    for i, axis in enumerate(axis_names):
         ax = fig.add_subplot(layout[i, 1], sharex=ax)
         ax.plot(traj.t, traj.q[:, i], lw=1.2)
         ax.set_ylabel(f"{axis} ({units[i]})")
@@ -270,7 +272,8 @@ def plot_path(traj: "Trajectory", *, title: str = "", n_arrows: int = 40,
 
 
 def plot_tracking(t: np.ndarray, predicted: np.ndarray, simulated: np.ndarray, *,
-                  simulated_label: str = "simulated", title: str = "") -> Figure:
+                  simulated_label: str = "simulated", title: str = "",
+                  axis_names: Sequence[str] = AXES) -> Figure:
     """Fig. 17 of the paper: predicted vs simulated (measured) tracking errors, one panel per
     axis, in um (X, Y, Z) and mrad (A, C).
 
@@ -289,8 +292,8 @@ def plot_tracking(t: np.ndarray, predicted: np.ndarray, simulated: np.ndarray, *
                          f"{predicted.shape} and {simulated.shape}")
     fig = _figure(11.0, 9.0)
     axes = fig.subplots(len(AXES), 1, sharex=True)
-    for i, (axis, ax) in enumerate(zip(AXES, axes)):
-        scale, unit = _axis_scale(axis)
+    for i, (axis, ax) in enumerate(zip(axis_names, axes)):
+        scale, unit = _axis_scale(AXES[i])   # by slot: slot 3 is rotary whatever its letter
         sim, pred = scale * simulated[:, i], scale * predicted[:, i]
         ax.plot(t, sim, color="tab:orange", lw=2.4, alpha=0.6, label=simulated_label)
         ax.plot(t, pred, color="k", lw=0.9, label="predicted (closed form)")
@@ -405,7 +408,8 @@ def _write_demo_files(result: "DemoResult", rows: Sequence[Mapping]) -> list[Pat
         traj = result.cases[[c.path for c in result.cases].index(path)].trajectory
         png = figure_png(plot_path(traj, title=(
             f"path '{path}': {summary.duration:.3f} s, {summary.n_samples} samples, peak feed "
-            f"{summary.peak_feed:.1f} mm/s on {result.machine.name}")))
+            f"{summary.peak_feed:.1f} mm/s on {result.machine.name}"),
+            axis_names=result.machine.axis_names))
         written.append(_write(out / names[f"path:{path}"], png))
         figures = [(f"Path '{path}': tool tip and orientations, and the five axis commands "
                     "(like the paper's Fig. 8).", names[f"path:{path}"])]
@@ -425,7 +429,8 @@ def _write_demo_files(result: "DemoResult", rows: Sequence[Mapping]) -> list[Pat
             png = figure_png(plot_tracking(
                 t, case.prediction(t), realistic_unc.simulation.e,
                 simulated_label="simulated (realistic machine)",
-                title=f"tracking errors, path '{path}', controller {controller}, uncompensated"))
+                title=f"tracking errors, path '{path}', controller {controller}, uncompensated",
+                axis_names=result.machine.axis_names))
             written.append(_write(out / names[f"tracking:{path}:{controller}"], png))
             figures.append((f"Path '{path}', {controller}: predicted vs simulated axis tracking "
                             "errors of the uncompensated commands (like the paper's Fig. 17).",
@@ -471,7 +476,8 @@ def _demo_html(result: "DemoResult", rows, sections) -> str:
         for p, s in result.summaries.items())
     controllers = "".join(
         f"<li><b>{html.escape(name)}</b>: closed-loop -3 dB bandwidth "
-        + ", ".join(f"{axis} {bw:.1f} Hz" for axis, bw in zip(AXES, result.bandwidths[name]))
+        + ", ".join(f"{axis} {bw:.1f} Hz"
+                    for axis, bw in zip(machine.axis_names, result.bandwidths[name]))
         + "</li>" for name in result.controllers)
     legend = "".join(f"<li><code>{html.escape(k)}</code>: {html.escape(v)}</li>"
                      for k, v in MACHINE_LABELS.items())

@@ -37,7 +37,7 @@ from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError, plain
 from ..kernels import jit
 from ..machine.machine_file import Machine
-from ..trajectory.sampled import UNIFORM_TIME_RTOL, Trajectory, check_uniform_time
+from ..trajectory.sampled import Trajectory, check_uniform_time
 
 __all__ = ["REALISTIC", "realistic_actual", "LAWS", "DEFAULT_SUBSTEPS", "FF_SPEED_DEADBAND", "MODES", "SimulationResult",
            "StackedFriction", "simulate", "simulate_draws", "simulate_trajectory"]
@@ -327,7 +327,7 @@ def _prepare(t, q, machine: Machine, controller: Controller | str, *, mode: str 
         raise InputError(f"t must have shape (N,), got {t.shape}", field="t")
     ts = check_uniform_time(t, min_samples=min_samples)
     q = _check_commands(q, t.size)
-    if mode == "discrete" and abs(ts - machine.servo_period) > UNIFORM_TIME_RTOL * ts + 1e-12:
+    if mode == "discrete" and not machine.at_servo_period(ts):
         raise InputError(f"sample period {ts:.9g} s differs from the machine's servo period "
                          f"{machine.servo_period:.9g} s (discrete mode samples at the servo "
                          "period)", field="t")

@@ -9,9 +9,11 @@ One folder, written as a set (a temporary folder beside the target, then a renam
   (commanded position = feedback) as LinuxCNC's sim configurations do; replace the loop-back
   nets by the machine's position loops. ``run``'s G-code is in machine axes, so the kinematics
   maps the program's X Y Z A C (X Y Z B C) to the joints one to one: ``trivkins`` on a
-  machine type LinuxCNC has no module for (``ac-trunnion``), and on the LinuxCNC trunnion
-  types their own module (``xyzac-trt-kins``, ``xyzbc-trt-kins``, with the machine file's
-  offsets) loaded identity first, with ``M428`` (tool centre point) and ``M429`` (identity)
+  machine type LinuxCNC has no module for (``ac-trunnion``, ``xyzbc-head-table``), and on the
+  LinuxCNC types their own module (``xyzac-trt-kins``, ``xyzbc-trt-kins`` with the machine
+  file's offsets; ``5axiskins`` on ``xyzbc-head-head``, its pivot length plus the tool length
+  through a ``sum2``, as LinuxCNC's bridge mill sim does, and the W joint it requires standing
+  at 0) loaded identity first, with ``M428`` (tool centre point) and ``M429`` (identity)
   switching as in LinuxCNC's trunnion sim configurations.
 - ``headless.ini``: the same machine with a display program (``headless.py``, the system
   Python's ``linuxcnc`` module) that resets E-stop, turns the machine on, homes, runs one
@@ -37,7 +39,7 @@ from typing import Mapping
 
 from ..errors import InputError, OutputError
 from ..machine.drives import LINEAR_AXES
-from ..machine.kinematics import XYZACTrunnion, XYZBCTrunnion
+from ..machine.kinematics import XYZACTrunnion, XYZBCHeadHead, XYZBCTrunnion
 
 #: The file that marks a folder as a configuration this module wrote (it may be replaced).
 MARKER = "machine.ini"
@@ -144,6 +146,8 @@ def _kinematics(machine) -> tuple[str, str, bool, list[str]]:
     """(module, loadrt line, tcp, HAL lines setting its parameters)."""
     kin = machine.kinematics
     coordinates = "".join(machine.axis_names)
+    if isinstance(kin, XYZBCHeadHead):
+        return _five_axis_kins(machine, kin)
     if not isinstance(kin, (XYZACTrunnion, XYZBCTrunnion)):
         return "trivkins", f"trivkins coordinates={coordinates}", False, []
     tilt_x = isinstance(kin, XYZACTrunnion)
@@ -172,6 +176,33 @@ def _kinematics(machine) -> tuple[str, str, bool, list[str]]:
     return module, f"{module} coordinates={coordinates} sparm=identityfirst", True, lines
 
 
+#: The coordinate 5axiskins requires besides X Y Z B C: W, the tool's travel along its axis,
+#: which precontour's programs never move (a joint of its own, looped back like the others).
+FIVE_AXIS_EXTRA = "W"
+
+
+def _five_axis_kins(machine, kin) -> tuple[str, str, bool, list[str]]:
+    """LinuxCNC's ``5axiskins`` (bridge mill, head-head) for ``xyzbc-head-head``: its senses
+    of rotation are fixed (B -1, C +1), its ``pivot-length`` pin is the pivot to the tool tip,
+    the machine file's ``pivot_length`` plus the tool length from the tool table (G43)."""
+    directions = (kin.b_direction, kin.c_direction)
+    if directions != (-1.0, 1.0):
+        raise InputError("LinuxCNC's 5axiskins turns B with direction -1 and C with +1, got "
+                         f"{directions[0]:+g} and {directions[1]:+g}",
+                         source=machine.source or machine.name, field="kinematics")
+    module = "5axiskins"
+    coordinates = "".join(machine.axis_names) + FIVE_AXIS_EXTRA
+    lines = ["# 5axiskins.pivot-length = pivot_length + the tool length (5axiskins.c's notes)",
+             "loadrt sum2 names=pivot-sum",
+             "addf pivot-sum servo-thread 1   # before the motion controller",
+             f"setp pivot-sum.offset {_num(kin.pivot_length)}",
+             "net :tool-offset motion.tooloffset.z => pivot-sum.in0",
+             f"net :pivot-length pivot-sum.out => {module}.pivot-length",
+             f"net :kinstype-select motion.analog-out-{SWITCHKINS_PIN:02d} => "
+             "motion.switchkins-type"]
+    return module, f"{module} coordinates={coordinates} sparm=identityfirst", True, lines
+
+
 def linuxcnc_config(machine) -> LinuxcncConfig:
     """The configuration of ``machine`` (a :class:`~precontour.machine.machine_file.Machine`)
     as text; :func:`write_linuxcnc_config` writes it."""
@@ -182,13 +213,18 @@ def linuxcnc_config(machine) -> LinuxcncConfig:
                          "runs (10 us .. 100 ms)", source=machine.source or machine.name,
                          field="servo_period")
     module, loadrt, tcp, kins_lines = _kinematics(machine)
+    if module == "5axiskins":
+        z = joints[2]
+        joints += (JointLimits(letter=FIVE_AXIS_EXTRA, rotary=False, minimum=z.minimum,
+                               maximum=z.maximum, velocity=z.velocity,
+                               acceleration=z.acceleration),)
     tool_length = getattr(machine.kinematics, "tool_offset", 0.0)
     files = {
         "machine.ini": _ini(machine, joints, period_ns, loadrt, tcp, display="axis",
                             halfiles=("machine.hal",)),
         "headless.ini": _ini(machine, joints, period_ns, loadrt, tcp,
                              display="./headless.py", halfiles=("machine.hal", "record.hal")),
-        "machine.hal": _machine_hal(kins_lines),
+        "machine.hal": _machine_hal(kins_lines, len(joints)),
         "record.hal": _record_hal(machine, period_ns),
         "stream.hal": _stream_hal(machine, period_ns),
         "headless.py": HEADLESS_PY,
@@ -202,9 +238,10 @@ def linuxcnc_config(machine) -> LinuxcncConfig:
 
 
 def _ini(machine, joints, period_ns, loadrt, tcp, *, display, halfiles) -> str:
-    linear = [j for j in joints if not j.rotary]
+    # X Y Z (5axiskins's W joint is no feed axis of the planner's Cartesian speed cap)
+    linear = [j for j in joints[:5] if not j.rotary]
     rotary = [j for j in joints if j.rotary]
-    coordinates = " ".join(machine.axis_names)
+    coordinates = " ".join(j.letter for j in joints)
     lines = [HEADER,
              f"# machine: {machine.name} ({machine.source or 'built-in'})",
              "# Limits are the machine file's (A, B, C in degrees); the joints are looped back",
@@ -255,7 +292,7 @@ def _limit_lines(j: JointLimits) -> list[str]:
                     f"MAX_ACCELERATION = {_num(j.acceleration)}"]
 
 
-def _machine_hal(kins_lines: list[str]) -> str:
+def _machine_hal(kins_lines: list[str], n_joints: int = 5) -> str:
     lines = ["# precontour linuxcnc-config: motion, kinematics and the joints looped back",
              "loadrt [KINS]KINEMATICS",
              "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD "
@@ -265,7 +302,7 @@ def _machine_hal(kins_lines: list[str]) -> str:
              "# commanded position = feedback (a simulated machine): replace by the position",
              "# loops, e.g. net j0-cmd joint.0.motor-pos-cmd => pid.0.command",
              *[f"net j{n}-pos joint.{n}.motor-pos-cmd => joint.{n}.motor-pos-fb"
-               for n in range(5)],
+               for n in range(n_joints)],
              "net estop-loop iocontrol.0.user-enable-out => iocontrol.0.emc-enable-in",
              "net tool-prep-loop iocontrol.0.tool-prepare => iocontrol.0.tool-prepared",
              "net tool-change-loop iocontrol.0.tool-change => iocontrol.0.tool-changed",

@@ -58,7 +58,7 @@ STREAMER_BUFFER_SECONDS = 2.0
 
 __all__ = ["DEFAULT_TOL_LINEAR", "DEFAULT_TOL_ROTARY", "PLANNER_NOTE", "ProgramInfo",
            "GcodeProgram", "decimate", "gcode_program", "halstreamer_lines", "rotary_moves",
-           "streamer_depth", "axis_tolerances"]
+           "streamer_depth", "gcode_tolerances"]
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ class GcodeProgram:
     rotary_blocks: int = 0
 
 
-def axis_tolerances(tol_linear: float = DEFAULT_TOL_LINEAR,
+def gcode_tolerances(tol_linear: float = DEFAULT_TOL_LINEAR,
                     tol_rotary: float = DEFAULT_TOL_ROTARY) -> np.ndarray:
     """Per-axis tolerance (5,), mm on X Y Z and rad on A C; each must exceed the rounding of
     the written numbers (:data:`LINEAR_ROUNDING`, :data:`ROTARY_ROUNDING`) tenfold."""
@@ -248,7 +248,7 @@ def gcode_program(t: np.ndarray, q: np.ndarray, *, tolerance: np.ndarray | None 
     if q.shape != (t.size, len(AXES)) or t.size < 2:
         raise ValueError(f"need at least 2 samples of t (N,) and q (N, 5), got {t.shape}, "
                          f"{q.shape}")
-    tolerance = axis_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
     rounding = np.array([LINEAR_ROUNDING] * 3 + [ROTARY_ROUNDING] * 2)
     # The rounding of both block ends shifts the interpolating line by at most one rounding.
     effective = (tolerance - rounding) * (1.0 - 1e-9)

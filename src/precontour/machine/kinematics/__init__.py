@@ -4,12 +4,20 @@ Each type registers a factory in :data:`KINEMATICS_TYPES` that takes the machine
 ``[kinematics]`` table and returns an object with ``axis_names`` (slot 3 is A or B) and
 vectorized ``inverse(P, O)`` (tool tip and orientation in the workpiece frame to axis
 positions q = [X, Y, Z, A, C]), ``forward(q)``, ``orientation(q)`` (or ``orientation(A, C)``),
-``orientation_jacobian(A, C)`` and ``linear_axes(P, A, C)`` (the tool-centre-point map). The
-tool orientation is always O = dP/dZ, the direction in which the spindle axis moves the tip.
+``orientation_jacobian(A, C)`` and ``linear_axes(P, A, C)`` (the tool-centre-point map).
 
 - ``ac-trunnion`` (:mod:`.ac_trunnion`): Zhang et al.'s A-C trunnion, offsets L_ac, L_ty;
 - ``xyzac-trt`` (:mod:`.xyzac_trt`): A-C trunnion with LinuxCNC xyzac-trt-kins's offsets;
-- ``xyzbc-trt`` (:mod:`.xyzbc_trt`): B-C trunnion with LinuxCNC xyzbc-trt-kins's offsets.
+- ``xyzbc-trt`` (:mod:`.xyzbc_trt`): B-C trunnion with LinuxCNC xyzbc-trt-kins's offsets;
+- ``xyzbc-head-table`` (:mod:`.xyzbc_head_table`): tilting B head, rotary C table;
+- ``xyzbc-head-head`` (:mod:`.xyzbc_head_head`): B-C fork head, LinuxCNC 5axiskins's geometry;
+- ``chain`` (:mod:`.chain`): any of these families as a chain of rotary axes (direction, point,
+  carried by the table or the head); the types above are its presets (:func:`.chain.chain_of`).
+
+The tool tip and orientation are in the workpiece frame: on a table it turns with the table's
+rotary axes, on a head machine it is the machine frame. On the trunnions the tool orientation is
+also dP/dZ; on every type it is -dP/dt for the tool length t (a shorter tool moves the tip along
+the tool axis, towards the spindle).
 """
 
 from __future__ import annotations
@@ -18,7 +26,10 @@ import numpy as np
 
 from ...errors import InputError, notice
 from .ac_trunnion import ACTrunnion
+from .chain import ChainKinematics, RotaryAxis, chain_of
 from .xyzac_trt import XYZACTrunnion
+from .xyzbc_head_head import XYZBCHeadHead
+from .xyzbc_head_table import XYZBCHeadTable
 from .xyzbc_trt import XYZBCTrunnion
 
 #: Tolerance on | |O| - 1 | below which orientations are normalized (with one notice) instead
@@ -32,10 +43,14 @@ KINEMATICS_TYPES = {
     "ac-trunnion": ACTrunnion.from_table,
     "xyzac-trt": XYZACTrunnion.from_table,
     "xyzbc-trt": XYZBCTrunnion.from_table,
+    "xyzbc-head-table": XYZBCHeadTable.from_table,
+    "xyzbc-head-head": XYZBCHeadHead.from_table,
+    "chain": ChainKinematics.from_table,
 }
 
-__all__ = ["ACTrunnion", "KINEMATICS_TYPES", "UNIT_TOLERANCE", "XYZACTrunnion", "XYZBCTrunnion",
-           "angle_between", "normalize_orientations"]
+__all__ = ["ACTrunnion", "ChainKinematics", "KINEMATICS_TYPES", "RotaryAxis", "UNIT_TOLERANCE",
+           "XYZACTrunnion", "XYZBCHeadHead", "XYZBCHeadTable", "XYZBCTrunnion", "angle_between",
+           "chain_of", "normalize_orientations"]
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,10 +1,13 @@
-"""What every trunnion-table kinematics shares: the orientation of a tilt-then-turn table and
-the path-mode inverse for it (C unwrapped, the pole A = 0 bridged, the tilt sign chosen within
-the tilt axis's travel).
+"""What every kinematics type shares: the orientation map O = Rz(turn) R(tilt) ez of a
+tilt-then-turn table, and the path-mode inverse for it (C unwrapped, the pole A = 0 bridged,
+the tilt sign chosen within the tilt axis's travel).
 
+The same map describes the head families in their workpiece frames: a B-C fork head (tool axis
+Rz(c) Ry(b) ez, the workpiece frame being the machine frame) and a B head over a C table (tool
+axis Rz(-c) Ry(b) ez in the frame turning with the table), with their own senses of rotation.
 A type module defines the tool tip equations and, through :class:`TrunnionKinematics`'s hooks,
-how its commanded rotary angles map to the physical tilt and turn of the table. The tool axis is
-always O = dP/dZ (spec section 1), so it follows from the tip equations.
+how its commanded rotary angles map to the physical tilt and turn. On a table the tool axis is
+O = dP/dZ (spec section 1); on every type it is O = -dP/dt for the tool length t.
 """
 
 from __future__ import annotations

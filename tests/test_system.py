@@ -1,0 +1,125 @@
+"""The servo-first API (precontour.system) against the stage functions it calls and against
+an independent integration: the same numbers, one way to call them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import precontour
+from precontour import (builtin_path, compensate, contour_errors, generate_trajectory,
+                        load_machine, load_servo, predict, simulate)
+from precontour.compensation.precompensate import compensate as compensate_stage
+from precontour.errors import InputError
+from precontour.prediction import ReferencePath
+from precontour.prediction import contour_errors as contour_errors_stage
+from precontour.simulation import simulate as simulate_stage
+
+
+@pytest.fixture(scope="module")
+def servo():
+    return load_servo("zhang2013", "pid-high")
+
+
+@pytest.fixture(scope="module")
+def paper(servo):
+    return generate_trajectory(builtin_path("paper"), servo.machine)
+
+
+def test_servo_is_made_once_from_a_name_a_file_or_a_machine(servo, tmp_path):
+    machine = load_machine("zhang2013")
+    same = load_servo(machine, "pid-high")
+    assert same.machine is machine and servo.servo_period == machine.servo_period == 0.001
+    assert servo.axis_names == tuple(machine.axis_names)
+    for ours, theirs in zip(servo.models, machine.controller("pid-high").error_models(
+            machine.drives)):
+        np.testing.assert_array_equal(ours.num, theirs.num)
+        np.testing.assert_array_equal(ours.den, theirs.den)
+    np.testing.assert_array_equal(servo.limits.jerk, [d.j_max for d in machine.drives])
+    with pytest.raises(precontour.MachineFileError, match="unknown controller"):
+        load_servo("zhang2013", "pid-medium")
+    assert "Servo(machine='zhang2013'" in repr(servo)
+
+
+def test_predict_is_the_closed_form_of_each_axis(servo, paper):
+    """The stage's closed form (checked against lsim and solve_ivp in tests/prediction), at
+    once for this length; the contour errors come with it where the reference is known."""
+    from precontour.prediction import predict_tracking
+
+    predicted = predict(servo, paper)
+    stage = predict_tracking(paper.t, paper.q, servo.models)(paper.t)
+    assert np.abs(predicted.e - stage).max() <= 1e-12
+    assert predicted.contour is not None and predicted.contour.tip.size == paper.n_samples
+    without = predict(servo, paper.__class__(t=paper.t, q=paper.q))
+    assert without.contour is None
+
+
+def test_compensate_without_limits_is_the_stage_function(servo, paper):
+    ours = compensate(servo, paper, limits=False)
+    stage = compensate_stage(paper, servo.kinematics, servo.models)
+    np.testing.assert_array_equal(ours.commands.q, stage.trajectory.q)
+    assert ours.reference is paper and not ours.within_limits and ours.slowdowns == ()
+    assert ours.after.tip.max() == stage.after.tip.max()
+
+
+def test_compensate_keeps_the_limits_by_default(servo):
+    circle = generate_trajectory(builtin_path("circle"), servo.machine)
+    comp = compensate(servo, circle)
+    assert comp.within_limits and comp.slowdowns and comp.added_time > 0
+    jerk = np.abs(np.diff(comp.commands.q, 3, axis=0)).max(axis=0) / circle.ts ** 3
+    assert np.all(jerk <= servo.limits.jerk * (1 + 1e-9))
+    assert comp.reference.n_samples == comp.commands.n_samples > circle.n_samples
+
+
+def test_simulate_and_contour_errors_are_the_stage_functions(servo, paper):
+    comp = compensate(servo, paper, limits=False)
+    sim = simulate(servo, comp)
+    stage = simulate_stage(paper.t, comp.commands.q, servo.machine, "pid-high",
+                           mode="discrete", friction=True, ff_friction=True)
+    np.testing.assert_array_equal(sim.q_act, stage.q_act)
+    ours = contour_errors(servo, paper, sim)
+    theirs = contour_errors_stage(ReferencePath.from_trajectory(paper), stage.q_act,
+                                  servo.kinematics)
+    np.testing.assert_array_equal(ours.tip, theirs.tip)
+    exact = simulate(servo, comp.commands.q, realism="exact")
+    assert exact.mode == "continuous"
+    # compensation works on both machines
+    before = contour_errors(servo, paper, simulate(servo, paper)).tip.max()
+    assert ours.tip.max() < 0.2 * before
+
+
+def test_bad_keywords_are_one_line_errors(servo, paper):
+    with pytest.raises(InputError, match="method"):
+        compensate(servo, paper, method="magic")
+    with pytest.raises(InputError, match="realism"):
+        simulate(servo, paper, realism="perfect")
+    with pytest.raises(InputError, match="learn"):
+        compensate(servo, paper, learn=-1)
+    with pytest.raises(InputError, match="reference"):
+        compensate(servo, paper.__class__(t=paper.t, q=paper.q))
+
+
+def test_learning_is_skipped_with_a_notice_where_it_cannot_run(servo, paper, caplog):
+    coarse = paper.__class__(t=paper.t[::2], q=paper.q[::2], P=paper.P[::2], O=paper.O[::2])
+    comp = compensate(servo, coarse, learn=1)
+    assert comp.learning is None
+    assert "no learning: the trajectory's sample period 0.002 s" in caplog.text
+
+
+def test_results_plot_themselves(servo, paper):
+    """Compensation.plot() and plot_contour_errors draw what they were given: each line's
+    data is the errors in um / mrad, on the reference's times."""
+    from precontour import plot_contour_errors
+
+    comp = compensate(servo, paper, limits=False)
+    fig = comp.plot()
+    tip, ori = fig.axes
+    lines = tip.get_lines()
+    assert [line.get_label().split(":")[0] for line in lines] == ["uncompensated", "compensated"]
+    np.testing.assert_array_equal(lines[1].get_ydata(), 1e3 * comp.after.tip)
+    np.testing.assert_array_equal(ori.get_lines()[0].get_xdata(), comp.reference.t)
+    fig = plot_contour_errors(servo, paper, {"uncompensated": simulate(servo, paper),
+                                             "compensated": simulate(servo, comp)})
+    simulated = contour_errors(servo, paper, simulate(servo, comp))
+    np.testing.assert_array_equal(fig.axes[1].get_lines()[1].get_ydata(),
+                                  1e3 * simulated.orientation)
