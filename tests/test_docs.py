@@ -19,7 +19,7 @@ PAGES = [README] + sorted(DOCS.rglob("*.md"))
 README_MAX_BYTES = 12 * 1024
 #: Measurement pages: written by scripts, each saying when and how it was measured.
 MEASUREMENT_PAGES = ("accuracy.md", "compensation.md", "programs.md",
-                     "identification-measured.md", "claims.md", "speed.md")
+                     "identification-measured.md", "claims.md", "speed.md", "feed.md")
 
 _FENCE = re.compile(r"^(```|~~~).*?^\1[ \t]*$", re.M | re.S)
 _COMMENT = re.compile(r"<!--.*?-->", re.S)

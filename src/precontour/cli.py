@@ -26,7 +26,7 @@ from . import __version__
 from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS,
                        COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
-                       DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
+                       DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
                        DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
                        GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, builtin_machines,
                        default_max_samples)
@@ -397,9 +397,35 @@ def build_parser() -> argparse.ArgumentParser:
                           "(as for compensate), after the compensation within limits: each "
                           "learning update smoothed, a command kept only if it keeps the "
                           "limits and is nowhere worse there than the uncompensated one; "
-                          "each pass costs 27 virtual-machine runs (default 0 = off)")
+                          "each pass costs 27 virtual-machine runs; with --tolerance, in "
+                          "every round of the search (default 0 = off)")
     _add_min_speed_option(run)
     _add_tol_option(run)
+    run.add_argument("--tolerance", type=_contour_tolerance, default=None,
+                     metavar="TIP_UM[,ORI_MRAD]",
+                     help="contour-error tolerance, tool tip in um and optionally orientation "
+                          "in mrad: find the fastest motion whose compensated contour errors "
+                          "keep it everywhere on the realistic virtual machine (worst of 5 "
+                          "draws of friction, J, B and encoder), slowing down locally and "
+                          "smoothly, and the fastest uncompensated motion with the same "
+                          "retiming (the baseline); print the cycle times as programmed, "
+                          "of the baseline and compensated, and the errors of each. Where "
+                          "even the lowest feed misses it, say where and exit with an error "
+                          "(see --write-anyway)")
+    run.add_argument("--feed-scale-max", type=_positive_float, default=DEFAULT_FEED_SCALE_MAX,
+                     metavar="K",
+                     help="with --tolerance: the highest feed, K times the programmed feed "
+                          "(above 1 where the program's feed was itself conservative; the "
+                          "axis limits hold whatever K; default "
+                          f"{DEFAULT_FEED_SCALE_MAX:g}: the programmed feed is the upper bound)")
+    run.add_argument("--feed-scale-min", type=_speed_fraction, default=DEFAULT_FEED_SCALE_MIN,
+                     metavar="FRACTION",
+                     help="with --tolerance: the lowest feed, as a fraction of the "
+                          "programmed feed, to which the motion may be slowed to keep the "
+                          f"tolerance (default {DEFAULT_FEED_SCALE_MIN:g})")
+    run.add_argument("--write-anyway", action="store_true",
+                     help="with --tolerance: write the compensated program even where it "
+                          "does not keep the tolerance (the table says where)")
     run.add_argument("-o", "--output", type=Path, required=True,
                      help="compensated G-code program (.ngc, .nc, ...)")
     run.add_argument("--stream", type=Path, default=None, metavar="OUT.txt",
@@ -550,6 +576,15 @@ def _number(text: str, *, allow_zero: bool) -> float:
         kind = "number >= 0" if allow_zero else "positive number"
         raise argparse.ArgumentTypeError(f"must be a {kind}, got {text!r}")
     return value
+
+
+def _contour_tolerance(text: str) -> tuple[float, float | None]:
+    """``TIP_UM[,ORI_MRAD]`` -> (tip um, orientation mrad or None)."""
+    parts = text.split(",")
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"give TIP_UM or TIP_UM,ORI_MRAD, got {text!r}")
+    values = [_positive_float(p.strip()) for p in parts]
+    return values[0], (values[1] if len(values) > 1 else None)
 
 
 def _speed_fraction(text: str) -> float:
@@ -935,7 +970,8 @@ def run_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     report_files = ()
     if args.report is not None:
-        from .reports.run_report import RUN_REPORT_FILES as report_files
+        from .reports.run_report import run_report_files
+        report_files = run_report_files(tolerance=args.tolerance is not None)
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
                          report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
@@ -946,7 +982,11 @@ def run_run(args: argparse.Namespace) -> int:
                              corner_tolerance=args.corner_tol, max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
-                             min_speed=args.min_speed)
+                             min_speed=args.min_speed,
+                             contour_tolerance=_tolerance_of(args.tolerance),
+                             feed_scale_max=args.feed_scale_max,
+                             feed_scale_min=args.feed_scale_min,
+                             write_anyway=args.write_anyway)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):
@@ -965,6 +1005,17 @@ def run_run(args: argparse.Namespace) -> int:
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
     return 0
+
+
+def _tolerance_of(value):
+    """The parsed --tolerance (um, mrad) as the library's tolerance (mm, rad), or None."""
+    if value is None:
+        return None
+    from .planning import ContourTolerance
+
+    tip, orientation = value
+    return ContourTolerance(tip=1e-3 * tip,
+                            orientation=None if orientation is None else 1e-3 * orientation)
 
 
 def run_machines(args: argparse.Namespace) -> int:

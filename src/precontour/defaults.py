@@ -40,6 +40,13 @@ DEFAULT_CORNER_TOLERANCE = 0.01
 #: planned speed (``run`` / ``compensate --min-speed``): where a limit would need a slower
 #: motion, the corrections there taper to the planned commands instead.
 DEFAULT_MIN_SPEED = 0.5
+#: Default lowest feed of ``run --tolerance``, as a fraction of the programmed feed
+#: (``--feed-scale-min``): where a contour-error tolerance would need a slower motion, the
+#: tolerance counts as not met there.
+DEFAULT_FEED_SCALE_MIN = 0.05
+#: Default highest feed of ``run --tolerance``, as a multiple of the programmed feed
+#: (``--feed-scale-max``): the programmed feed is an upper bound.
+DEFAULT_FEED_SCALE_MAX = 1.0
 #: Peak memory per trajectory sample of the commands a machinist's program goes through
 #: (trajectory, predict, compensate, simulate, run), bytes, with a margin:
 #: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample (built-in ``paper``

@@ -111,3 +111,8 @@ class UnsupportedControllerError(PrecontourError, ValueError):
 
 class MachineLimitError(PrecontourError, ValueError):
     """Commands would ask more of the machine than its axis limits allow."""
+
+
+class ToleranceError(PrecontourError, ValueError):
+    """A contour-error tolerance cannot be met, even at the slowest motion allowed: the
+    message names where (source line, time) and by how much."""

@@ -25,11 +25,12 @@ import numpy as np
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
-from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, EXPORT_FORMATS,
-                       default_max_samples)
-from .errors import InputError, MachineLimitError, notice
+from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
+                       DEFAULT_FEED_SCALE_MIN, EXPORT_FORMATS, default_max_samples)
+from .errors import InputError, MachineLimitError, ToleranceError, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
+from .planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
 from .prediction.contour import ContourErrors
 from .simulation.ensemble import MachineEnsemble, ensemble_actual
 from .simulation.virtual_machine import realistic_actual
@@ -112,13 +113,22 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
 
 def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
                      corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
-                     max_samples: int | None = None
+                     max_samples: int | None = None, feed_scale: float = 1.0
                      ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program read by :func:`read_run_program`, and its
-    non-motion lines to keep (None for CL data)."""
+    non-motion lines to keep (None for CL data). ``feed_scale``: the programmed feeds times
+    this (a feed override: G-code feed moves take their programmed time over it, rapids
+    keep the rapid rate; CL data's feeds and the default feed are multiplied); the axis
+    limits hold whatever it is."""
     max_samples = default_max_samples() if max_samples is None else int(max_samples)
+    if not (np.isfinite(feed_scale) and feed_scale > 0):
+        raise InputError(f"the feed scale must be positive and finite, got {feed_scale!r}",
+                         field="--feed-scale-max")
     if source.program is not None:
         program = source.program
+        if feed_scale != 1.0:
+            program = replace(program, duration=program.duration / feed_scale,
+                              feed=program.feed * feed_scale)
         # the output gives machine axes: lines that switch TCP mode on or off stay comments
         passthrough = machine_axes_passthrough(program.passthrough, tcp=program.tcp,
                                                tcp_all=source.tcp)
@@ -126,8 +136,12 @@ def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEF
                                   tolerance=corner_tolerance,
                                   max_samples=max_samples), passthrough
     report = source.toolpath
-    return generate_trajectory(report.toolpath, machine, ts=machine.servo_period, dwell=dwell,
-                               max_samples=max_samples, lines=report.lines), None
+    toolpath = report.toolpath
+    if feed_scale != 1.0 and toolpath.feed is not None:
+        toolpath = replace(toolpath, feed=np.asarray(toolpath.feed, dtype=float) * feed_scale)
+    return generate_trajectory(toolpath, machine, ts=machine.servo_period, dwell=dwell,
+                               feed=DEFAULT_FEED * feed_scale, max_samples=max_samples,
+                               lines=report.lines), None
 
 
 @dataclass(frozen=True)
@@ -230,6 +244,10 @@ class RunResult:
     tolerance: np.ndarray
     timings: dict = field(default_factory=dict)
     stream: Path | None = None
+    #: With a contour-error tolerance (``run --tolerance``): both searches; ``planned`` is
+    #: then the upper-bound plan and ``limited`` the compensated search's final compensation,
+    #: its slow-downs and time map against that plan.
+    feed: FeedWithinTolerance | None = None
 
     @property
     def commands(self) -> Trajectory:
@@ -353,6 +371,8 @@ class RunResult:
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")
         lines.append(self.linuxcnc_line())
+        if self.feed is not None:
+            lines.append(self.feed.table())
         return "\n".join(lines)
 
     def linuxcnc_line(self) -> str:
@@ -404,7 +424,11 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int = 0,
                 ensemble: MachineEnsemble | None = None,
-                min_speed: float = MIN_SPEED) -> RunResult:
+                min_speed: float = MIN_SPEED,
+                contour_tolerance: ContourTolerance | None = None,
+                feed_scale_max: float = 1.0,
+                feed_scale_min: float = DEFAULT_FEED_SCALE_MIN,
+                write_anyway: bool = False) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file) and ``controller`` have no
@@ -418,6 +442,13 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     result nowhere worse than uncompensated on them, block by block (each source line;
     :func:`learn_on_ensemble`). ``min_speed``: the floor of the local slow-downs that keep
     the limits, a fraction of the planned speed (below it the planned commands are kept).
+    ``contour_tolerance``: find the fastest motion whose compensated contour errors keep it on
+    the realistic virtual machine (each search's result checked on the draws of ``ensemble``,
+    default :class:`~.simulation.ensemble.MachineEnsemble` ()), between ``feed_scale_min`` and
+    ``feed_scale_max`` times the programmed feed, and the uncompensated baseline the same way
+    (:func:`~.planning.tolerance.feed_within_tolerance`; ``RunResult.feed``); where the
+    compensated one is not met even at the lowest feed, raise
+    :class:`~precontour.errors.ToleranceError` naming the place unless ``write_anyway``.
     ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
     when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
     samples; more than 1 needs the calling script's own code under
@@ -437,6 +468,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         # checked before computing, so that a bad output location is said at once
         check_run_outputs(outputs, inputs)
     tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    _check_feed_options(contour_tolerance, feed_scale_max, feed_scale_min)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
@@ -457,19 +489,47 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     def round_progress(round_: int, message: str) -> None:
         step(1, f"{message}, round {round_}")
 
-    limited = compensate_within_limits(planned, machine_obj.kinematics, models, limits,
-                                       line=line, iterations=iterations,
-                                       progress=round_progress, min_speed=min_speed)
-    timings["compensate"] = time.perf_counter() - start
-    if learn:
-        reference = limited.reference
-        if not machine_obj.at_servo_period(reference.ts):
-            notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
-                   f"period {machine_obj.servo_period:g} s of the virtual machine")
-        elif reference.n_samples > AT_ONCE_SAMPLES:
-            notice(f"no learning: {reference.n_samples} samples are more than "
-                   f"{AT_ONCE_SAMPLES}")
-        else:
+    feed = None
+    if contour_tolerance is None:
+        limited = compensate_within_limits(planned, machine_obj.kinematics, models, limits,
+                                           line=line, iterations=iterations,
+                                           progress=round_progress, min_speed=min_speed)
+        timings["compensate"] = time.perf_counter() - start
+    else:
+        programmed = planned
+        if feed_scale_max != 1.0:
+            step(1, f"plan {program} at {feed_scale_max:g} x the programmed feed")
+            planned = plan_run_program(source, machine_obj, dwell=dwell,
+                                       corner_tolerance=corner_tolerance,
+                                       max_samples=max_samples, feed_scale=feed_scale_max)[0]
+            line = getattr(planned, "line", None)
+        refine = None
+        if learn and _can_learn(planned, machine_obj):
+            the_ensemble = MachineEnsemble() if ensemble is None else ensemble
+
+            def refine(limited):
+                # a timing slowed beyond the learning's size is compensated without it
+                if not _can_learn(limited.reference, machine_obj):
+                    return limited
+                return learn_on_ensemble(limited, machine_obj, controller, models, limits,
+                                         learn, ensemble=the_ensemble)
+        feed = feed_within_tolerance(
+            planned, machine_obj, controller, contour_tolerance, programmed=programmed,
+            refine=refine, exempt_lines=_rapid_lines(source),
+            feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
+            line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
+            progress=lambda message: step(1, message), models=models, limits=limits,
+            limits_min_speed=min_speed, iterations=iterations,
+            where="line" if toolpath_format(program) == "gcode" else "row")
+        timings["feed within tolerance"] = time.perf_counter() - start
+        found = feed.compensated
+        if not found.met and not write_anyway:
+            raise ToleranceError(_tolerance_message(feed, feed_scale_min))
+        # the compensated search's commands, with the slow-downs against the upper-bound plan
+        limited = replace(found.limited, slowdowns=found.slowdowns,
+                          planned_index=found.planned_index)
+    if learn and feed is None:
+        if _can_learn(limited.reference, machine_obj):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
             limited = learn_on_ensemble(limited, machine_obj, controller, models, limits,
@@ -491,7 +551,9 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                        method=f"contour pre-compensation within axis limits, passes "
                               f"{limited.result.iterations}"
                               + (f", learned against the virtual machine ({learn} pass(es)): "
-                                 f"kept {learning.chosen}" if learning is not None else ""),
+                                 f"kept {learning.chosen}" if learning is not None else "")
+                              + (f", fastest feed within {feed.tolerance.describe()} on the "
+                                 "realistic virtual machine" if feed is not None else ""),
                        source=str(program))
     program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
                                  passthrough=passthrough, line=limited.line,
@@ -501,7 +563,61 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
-                     stream=None if outputs is None else outputs.stream)
+                     stream=None if outputs is None else outputs.stream, feed=feed)
+
+
+def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
+    """The lines of a G-code program's rapids (G0): they cut nothing, so a contour-error
+    tolerance does not apply to them (CL data has none)."""
+    program = source.program
+    if program is None:
+        return ()
+    rapid = np.asarray(program.rapid, dtype=bool)
+    feed_lines = set(np.asarray(program.line)[~rapid].tolist())
+    # a line that also holds a feed move (none in RS274, but safe) keeps its tolerance
+    return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
+
+
+def _can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
+    """Whether learning against the virtual machine can run on ``reference``; says why not."""
+    if not machine_obj.at_servo_period(reference.ts):
+        notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
+               f"period {machine_obj.servo_period:g} s of the virtual machine")
+        return False
+    if reference.n_samples > AT_ONCE_SAMPLES:
+        notice(f"no learning: {reference.n_samples} samples are more than {AT_ONCE_SAMPLES}")
+        return False
+    return True
+
+
+def _check_feed_options(contour_tolerance, feed_scale_max: float,
+                        feed_scale_min: float) -> None:
+    """Refuse feed-search options that do not go together, before any computing."""
+    for name, value in (("--feed-scale-max", feed_scale_max),
+                        ("--feed-scale-min", feed_scale_min)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"must be positive and finite, got {value!r}", field=name)
+    if contour_tolerance is None:
+        if feed_scale_max != 1.0 or feed_scale_min != DEFAULT_FEED_SCALE_MIN:
+            raise InputError("--feed-scale-max and --feed-scale-min apply with --tolerance "
+                             "only", field="--feed-scale-max")
+        return
+    if feed_scale_min > feed_scale_max:
+        raise InputError(f"the lowest feed scale {feed_scale_min:g} is above the highest "
+                         f"{feed_scale_max:g}", field="--feed-scale-min")
+
+
+def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
+    """One line: where the compensated search misses the tolerance, by how much."""
+    misses = feed.compensated.misses
+    first = misses[0]
+    why = (f"even at {100 * feed_scale_min:g} % of the programmed feed"
+           if first.floor or first.at_rest
+           else f"after {feed.compensated.rounds} rounds of slowing down")
+    more = f" (and {len(misses) - 1} more place(s))" if len(misses) > 1 else ""
+    return (f"the compensated program does not keep the tolerance "
+            f"{feed.tolerance.describe()} on the realistic virtual machine {why}: "
+            f"{first.format()}{more}; --write-anyway writes it nevertheless")
 
 
 def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,

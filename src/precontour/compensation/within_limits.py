@@ -165,7 +165,10 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             check = check_limits(q, ts, limits, t0=t0)
             over = check.ratio > 1.0 + CHECK_RTOL
         if check.ok:
-            if round_ > 1 or floored.any():
+            # q differs from the compensation's own commands after a re-timing, a taper, or
+            # kinks smoothed in the first round (which kept the limits: the smoothed commands
+            # are the ones that keep them)
+            if round_ > 1 or floored.any() or q is not result.trajectory.q:
                 result = _result_for(current, q, result, kinematics, models, options)
             return LimitedCompensation(
                 result=result, reference=current, line=current_line,

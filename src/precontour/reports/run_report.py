@@ -7,7 +7,9 @@ hour-long program stays readable) with a zoom on the samples around the largest 
 errors, named by source line and time (:func:`plot_contour_envelope`); and the speed along the
 program as a fraction of the planned one with each axis's peak jerk against its limit, before
 and after the local slow-downs. The summary and the page name the line and time of the largest
-errors (:meth:`~precontour.workflow.RunResult.largest_errors`). Only the report's own files are
+errors (:meth:`~precontour.workflow.RunResult.largest_errors`). With a contour-error tolerance
+(``run --tolerance``), also the feed along the path of the three variants with their errors
+under the tolerance band (:func:`plot_feed_within_tolerance`). Only the report's own files are
 written.
 """
 
@@ -31,6 +33,14 @@ if TYPE_CHECKING:  # pragma: no cover
 #: Files of a run report, in the folder given.
 RUN_REPORT_FILES: tuple[str, ...] = ("contour_errors.png", "speed_and_limits.png",
                                      "summary.txt", "index.html")
+#: The further figure of a run with a contour-error tolerance (``run --tolerance``).
+FEED_FIGURE = "feed_within_tolerance.png"
+
+
+def run_report_files(tolerance: bool = False) -> tuple[str, ...]:
+    """The files of a run report: :data:`RUN_REPORT_FILES`, and :data:`FEED_FIGURE` for a
+    run with a contour-error tolerance."""
+    return RUN_REPORT_FILES + ((FEED_FIGURE,) if tolerance else ())
 
 
 #: Largest number of time windows of the envelope plot: a few per pixel column of the figure.
@@ -187,10 +197,82 @@ def write_run_report(result: "RunResult", out_dir: str | Path) -> list[Path]:
     pngs = [figure_png(contour), figure_png(speed)]
     files = [save_png(contour, out / RUN_REPORT_FILES[0]),
              save_png(speed, out / RUN_REPORT_FILES[1])]
+    if result.feed is not None:
+        feed = plot_feed_within_tolerance(result)
+        pngs.append(figure_png(feed))
+        files.append(save_png(feed, out / FEED_FIGURE))
     table = result.table()
     files.append(write_text(out / RUN_REPORT_FILES[2], table + "\n"))
     files.append(write_text(out / RUN_REPORT_FILES[3], _html(result, table, pngs)))
     return files
+
+
+#: Points per curve of the feed figure (peaks of windows of samples along the path).
+FEED_POINTS = 2000
+
+
+def _along_path(traj, values: np.ndarray, points: int = FEED_POINTS):
+    """``values`` per sample against the tool tip's distance along the path (mm): the
+    largest in each of at most ``points`` windows of samples."""
+    step = np.linalg.norm(np.diff(traj.P, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(step)])
+    starts = np.unique(np.linspace(0, s.size, min(points, s.size) + 1).astype(np.int64)[:-1])
+    return s[starts], np.maximum.reduceat(values, starts)
+
+
+def _feed_of(traj) -> np.ndarray:
+    """Tool tip speed at each sample, mm/s (the step before it; the first copies the next)."""
+    v = np.linalg.norm(np.diff(traj.P, axis=0), axis=1) / traj.ts
+    return np.concatenate([v[:1], v]) if v.size else np.zeros(traj.n_samples)
+
+
+def plot_feed_within_tolerance(result: "RunResult") -> Figure:
+    """``run --tolerance``: the tool tip feed along the path as programmed, uncompensated
+    within the tolerance and compensated within it (top), and the contour errors of the
+    two searches (the worst draw at each sample) under the tolerance band (below: tip, and
+    orientation when bounded), against the distance along the path."""
+    feed = result.feed
+    bounded = feed.tolerance.orientation is not None
+    fig = _figure(11.0, 7.6 if bounded else 5.6)
+    axes = fig.subplots(3 if bounded else 2, 1, sharex=True)
+    variants = (("as programmed", feed.programmed, None, "0.5"),
+                ("uncompensated within tolerance", feed.baseline.reference, feed.baseline,
+                 "tab:red"),
+                ("compensated within tolerance", feed.compensated.reference, feed.compensated,
+                 "tab:blue"))
+    for label, traj, search, color in variants:
+        s, v = _along_path(traj, _feed_of(traj))
+        axes[0].plot(s, v, color=color, lw=1.0, label=f"{label}: {traj.duration:,.3f} s")
+        if search is None:
+            continue
+        for ax, attr, limit in ((axes[1], "tip", feed.tolerance.tip),
+                                (axes[2] if bounded else None, "orientation",
+                                 feed.tolerance.orientation)):
+            if ax is None:
+                continue
+            s, e = _along_path(traj, getattr(search.errors, attr))
+            ax.plot(s, 1e3 * e, color=color, lw=1.0)
+    axes[0].set_ylabel("tool tip feed (mm/s)")
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[0].set_title(f"{Path(result.source).name} on {result.machine.name}, "
+                      f"{result.controller}: fastest within {feed.tolerance.describe()} "
+                      f"(compensated {100 * (1 - feed.ratio):.1f} % shorter than "
+                      "uncompensated)", fontsize=10)
+    for ax, limit, name, unit in ((axes[1], feed.tolerance.tip, "tip", "um"),
+                                  (axes[2] if bounded else None, feed.tolerance.orientation,
+                                   "orientation", "mrad")):
+        if ax is None:
+            continue
+        ax.axhspan(0.0, 1e3 * limit, color="tab:green", alpha=0.12, lw=0)
+        ax.axhline(1e3 * limit, color="tab:green", lw=1.0, label="tolerance")
+        ax.set_ylabel(f"{name} contour error ({unit})")
+        ax.set_ylim(0.0, 1.5e3 * limit)
+        ax.legend(fontsize=8, loc="upper right")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("distance along the tool tip path (mm)")
+    fig.tight_layout()
+    return fig
 
 
 def _html(result: "RunResult", table: str, pngs: list[bytes]) -> str:
@@ -213,8 +295,15 @@ pre{{background:#f4f4f4;padding:1em}}img{{max-width:100%}}</style></head><body>
 <h2>Speed and limits</h2>
 <ul>{slow or "<li>not slowed: the compensated commands kept every limit</li>"}</ul>
 <img src="{_data_uri(pngs[1])}" alt="speed and limits">
-</body></html>
+{_feed_html(pngs)}</body></html>
 """
+
+
+def _feed_html(pngs: list[bytes]) -> str:
+    if len(pngs) < 3:
+        return ""
+    return (f'<h2>Feed within the tolerance</h2>\n<img src="{_data_uri(pngs[2])}" '
+            'alt="feed within the tolerance">\n')
 
 
 def _largest_table(result: "RunResult") -> str:
