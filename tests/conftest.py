@@ -16,6 +16,21 @@ from precontour import load_machine
 FRICTION_DRAWS = 5
 
 
+def assert_pose_round_trip(kin, P, O):
+    """``kin.inverse`` of a tool tip ``P`` and orientation ``O`` (normalised here), then
+    ``kin.forward``: the pose again, to 1e-9 mm and twice the pole tolerance. Returns the
+    axes (for each type's own checks of the solution chosen)."""
+    from precontour.machine.kinematics.ac_trunnion import POLE_TOLERANCE
+
+    P = np.array(P)
+    O = np.array(O) / np.linalg.norm(O)
+    q = kin.inverse(P, O)
+    P2, O2 = kin.forward(q)
+    np.testing.assert_allclose(P2, P, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(O2, O, atol=2 * POLE_TOLERANCE + 1e-15, rtol=0)
+    return q
+
+
 @pytest.fixture(scope="session")
 def machine():
     return load_machine("zhang2013")
