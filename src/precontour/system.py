@@ -185,9 +185,9 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
     ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (defaults: the compensation's).
     ``progress(pass, summary)``: each unconstrained pass; ``learning_progress(label,
     summary)``: each command learning tries."""
-    from .compensation.pieces import AT_ONCE_SAMPLES
     from .errors import notice
     from .machine.controllers import is_closed_loop
+    from .workflow import can_learn
 
     if method not in METHODS:
         raise InputError(f"unknown compensation method {method!r}; choose one of "
@@ -201,15 +201,7 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                          field="Px")
     learner = learning_controller(servo, learn_controller)
     if learn and method == "contour":
-        if not servo.machine.at_servo_period(trajectory.ts):
-            notice(f"no learning: the trajectory's sample period {trajectory.ts:g} s is not "
-                   f"the servo period {servo.servo_period:g} s of the virtual machine")
-            learn = 0
-        elif trajectory.n_samples > AT_ONCE_SAMPLES:
-            # learning runs the whole trajectory on the virtual machine; long programs are
-            # compensated in pieces, linearly
-            notice(f"no learning: {trajectory.n_samples} samples are more than "
-                   f"{AT_ONCE_SAMPLES} (compensated in pieces)")
+        if not can_learn(trajectory, servo.machine):
             learn = 0
         elif is_closed_loop(learner):
             notice(f"learning against controller {learner.name!r}, a transfer function "

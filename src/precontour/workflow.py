@@ -504,12 +504,12 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                                        max_samples=max_samples, feed_scale=feed_scale_max)[0]
             line = getattr(planned, "line", None)
         refine = None
-        if learn and _can_learn(planned, machine_obj):
+        if learn and can_learn(planned, machine_obj):
             the_ensemble = MachineEnsemble() if ensemble is None else ensemble
 
             def refine(limited):
                 # a timing slowed beyond the learning's size is compensated without it
-                if not _can_learn(limited.reference, machine_obj):
+                if not can_learn(limited.reference, machine_obj):
                     return limited
                 return learn_on_ensemble(limited, machine_obj, controller, models, limits,
                                          learn, ensemble=the_ensemble)
@@ -529,7 +529,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         limited = replace(found.limited, slowdowns=found.slowdowns,
                           planned_index=found.planned_index)
     if learn and feed is None:
-        if _can_learn(limited.reference, machine_obj):
+        if can_learn(limited.reference, machine_obj):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
             limited = learn_on_ensemble(limited, machine_obj, controller, models, limits,
@@ -578,14 +578,17 @@ def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
     return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
 
 
-def _can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
-    """Whether learning against the virtual machine can run on ``reference``; says why not."""
+def can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
+    """Whether learning against the virtual machine can run on ``reference``; says why not,
+    in one notice: the virtual machine runs at the servo period, and learning runs the whole
+    trajectory on it (a longer one is compensated in pieces, linearly)."""
     if not machine_obj.at_servo_period(reference.ts):
-        notice(f"no learning: the sample period {reference.ts:g} s is not the servo "
-               f"period {machine_obj.servo_period:g} s of the virtual machine")
+        notice(f"no learning: the trajectory's sample period {reference.ts:g} s is not the "
+               f"servo period {machine_obj.servo_period:g} s of the virtual machine")
         return False
     if reference.n_samples > AT_ONCE_SAMPLES:
-        notice(f"no learning: {reference.n_samples} samples are more than {AT_ONCE_SAMPLES}")
+        notice(f"no learning: {reference.n_samples} samples are more than "
+               f"{AT_ONCE_SAMPLES} (compensated in pieces)")
         return False
     return True
 
