@@ -423,21 +423,31 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                  if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok]
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
                   if accepted[i][1] is not q_reference]
-        repaired = []
-        runs_before = runs
-        for i in order[:REPAIRED_CANDIDATES]:
+
+        def repair(i, alternatives=(), program_margin=0.0):
+            """Candidate ``i`` fallen back where it hurts (:func:`~.blocks.fall_back`):
+            its entry and the report, or None where only the planned command everywhere
+            would do."""
             candidate, q_try, judged_try = accepted[i]
-            alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
-                            if q_alt is not q_try][:ALTERNATIVES]
             q_fixed, judged, report_try = fall_back(
                 q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
                 starts, ts, alternatives=alternatives, fallbacks=fallbacks,
-                admissible=admissible, line=line, t0=t0)
-            if not report_try.everywhere:
-                label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
-                repaired.append(((LearningCandidate(label, judged.worst, True, True,
-                                                    judged.median), q_fixed, judged),
-                                 report_try))
+                admissible=admissible, line=line, t0=t0, program_margin=program_margin)
+            if report_try.everywhere:
+                return None
+            label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
+            return ((LearningCandidate(label, judged.worst, True, True, judged.median),
+                     q_fixed, judged), report_try)
+
+        repaired = []
+        runs_before = runs
+        for i in order[:REPAIRED_CANDIDATES]:
+            q_try = accepted[i][1]
+            alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
+                            if q_alt is not q_try][:ALTERNATIVES]
+            fixed = repair(i, alternatives)
+            if fixed is not None:
+                repaired.append(fixed)
         pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
         kept = pool[best([entry[2] for entry in pool])]
         fallback = next((f for e, f in repaired if e is kept), None)
@@ -448,17 +458,10 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             loose = [entry for entry in accepted if entry[1] is not q_reference
                      and not worse_blocks(entry[2], reference, PROGRAM_MARGIN).any()]
             for i in ([] if loose else order[:REPAIRED_CANDIDATES]):
-                candidate, q_try, judged_try = accepted[i]
-                q_fixed, judged, report_try = fall_back(
-                    q_try, judged_try, q_reference, reference,
-                    lambda q: judged_safely(q)[0], starts, ts, fallbacks=fallbacks,
-                    admissible=admissible, line=line, t0=t0, program_margin=PROGRAM_MARGIN)
-                if not report_try.everywhere:
-                    label = (f"{candidate.label}, fell back in {len(report_try.blocks)} "
-                             "block(s)")
-                    loose.append((LearningCandidate(label, judged.worst, True, True,
-                                                    judged.median), q_fixed, judged))
-                    repaired.append((loose[-1], report_try))
+                fixed = repair(i, program_margin=PROGRAM_MARGIN)
+                if fixed is not None:
+                    loose.append(fixed[0])
+                    repaired.append(fixed)
             if loose:
                 kept = loose[best([entry[2] for entry in loose])]
                 kept = (replace(kept[0], label=f"{kept[0].label}, within "
