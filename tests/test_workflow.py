@@ -414,6 +414,62 @@ def test_run_names_the_lines_where_compensation_is_worse(tmp_path):
     assert f"line {worse[0].line}, t = " in table
 
 
+def test_run_checks_both_commands_on_the_draws_of_the_machine(tmp_path):
+    """``run`` reports the median and the worst of its draws (``--draws``, default 5): draw 0
+    is the machine file's machine (the simulated rows of the table); the other draws are
+    simulated again here, independently, by :func:`simulate_draws` with all the ensemble's
+    options at once, and their contour errors computed on the whole reference at once; the
+    lines named worse are checked line by line against those errors."""
+    from pathlib import Path
+
+    from precontour.compensation.blocks import ORIENTATION_MARGIN, RELATIVE_MARGIN, TIP_MARGIN
+    from precontour.prediction.contour import ReferencePath
+    from precontour.simulation.ensemble import MachineEnsemble
+    from precontour.simulation.virtual_machine import REALISTIC, simulate_draws
+    from precontour.workflow import run_program
+
+    program = Path(__file__).parent / "linuxcnc" / "data" / "3plus2.ngc"
+    result = run_program(program, machine="zhang2013", controller="pid-high", draws=3)
+    check = result.draws
+    assert check.ensemble == MachineEnsemble(draws=3)
+    assert check.before.summaries[0] == result.simulated_before.summary()
+    assert check.after.summaries[0] == result.simulated_after.summary()
+    reference = result.limited.reference
+    machine_obj = load_machine("zhang2013")
+    options = MachineEnsemble(draws=3).options(reference.n_samples)
+    path = ReferencePath.from_trajectory(reference)
+    line = result.limited.line
+    worst = {}
+    for label, q, judged in (("before", reference.q, check.before),
+                             ("after", result.commands.q, check.after)):
+        q_act = simulate_draws(reference.t, q, machine_obj, "pid-high", options[1:],
+                               **REALISTIC)
+        errors = [result.simulated_before if label == "before" else result.simulated_after]
+        errors += [path.errors(*machine_obj.kinematics.forward(q_act[d])) for d in range(2)]
+        for d in (1, 2):
+            summary = errors[d].summary()
+            for key, value in judged.summaries[d].items():
+                assert value == pytest.approx(summary[key], rel=1e-9, abs=1e-12), (label, d, key)
+        numbers = np.unique(line)
+        worst[label] = np.array([[max(e.tip[line == n].max() for e in errors),
+                                  max(e.orientation[line == n].max() for e in errors)]
+                                 for n in numbers])
+    bound = worst["before"] + np.maximum([TIP_MARGIN, ORIENTATION_MARGIN],
+                                         RELATIVE_MARGIN * worst["before"])
+    hurts = np.flatnonzero((worst["after"] > bound).any(axis=1))
+    np.testing.assert_array_equal(check.worse_blocks(), hurts)
+    reductions = check.reductions("tip_max")
+    assert reductions.shape == (3,)     # measured 0.65, 0.65 and 0.32: one draw is far worse
+    assert reductions[0] == pytest.approx(
+        1 - result.simulated_after.tip.max() / result.simulated_before.tip.max(), rel=1e-12)
+    table = result.table()
+    assert "compensated worst" in table and "tip reduction, median / worst draw" in table
+    assert result.table().count("uncompensated median") == 1
+    single = run_program(program, machine="zhang2013", controller="pid-high", draws=1)
+    assert single.draws is None and "uncompensated median" not in single.table()
+    np.testing.assert_array_equal(single.commands.q, result.commands.q)
+
+
 def test_run_program_computes_without_output_locations(tmp_path):
     """The library computes ``run`` without output paths; the same numbers as with them."""
     from pathlib import Path

@@ -23,7 +23,7 @@ from pathlib import Path
 # when it runs, and --help, --version and `machines` never load it. Defaults and names the
 # help shows come from precontour.defaults (tests/test_cli.py checks what --help imports).
 from . import __version__
-from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS,
+from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS, DEFAULT_CHECK_DRAWS,
                        COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
                        DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
@@ -426,6 +426,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--write-anyway", action="store_true",
                      help="with --tolerance: write the compensated program even where it "
                           "does not keep the tolerance (the table says where)")
+    run.add_argument("--draws", type=_positive_int, default=DEFAULT_CHECK_DRAWS, metavar="N",
+                     help="check both commands on N machines: the machine file's and N - 1 "
+                          "draws of its friction, inertia, damping and a noisy encoder (those "
+                          "learning decides on), and give the median and the worst draw, "
+                          "where friction at a stop makes one exact machine's answer a coin "
+                          f"toss; each draw costs two virtual-machine runs; 1 = the machine "
+                          f"file's only (default {DEFAULT_CHECK_DRAWS})")
     run.add_argument("-o", "--output", type=Path, required=True,
                      help="compensated G-code program (.ngc, .nc, ...)")
     run.add_argument("--stream", type=Path, default=None, metavar="OUT.txt",
@@ -986,7 +993,7 @@ def run_run(args: argparse.Namespace) -> int:
                              contour_tolerance=_tolerance_of(args.tolerance),
                              feed_scale_max=args.feed_scale_max,
                              feed_scale_min=args.feed_scale_min,
-                             write_anyway=args.write_anyway)
+                             write_anyway=args.write_anyway, draws=args.draws)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):

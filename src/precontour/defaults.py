@@ -40,6 +40,12 @@ DEFAULT_CORNER_TOLERANCE = 0.01
 #: planned speed (``run`` / ``compensate --min-speed``): where a limit would need a slower
 #: motion, the corrections there taper to the planned commands instead.
 DEFAULT_MIN_SPEED = 0.5
+#: Default number of machines ``run`` checks its result on (``--draws``): the machine file's
+#: and draws of its friction, inertia, damping and encoder (the learning's ensemble,
+#: :class:`precontour.simulation.ensemble.MachineEnsemble`). Where an axis stops under
+#: friction, the outcome on one exact machine is decided by nanometres; the table reports
+#: the median and the worst over the draws.
+DEFAULT_CHECK_DRAWS = 5
 #: Default lowest feed of ``run --tolerance``, as a fraction of the programmed feed
 #: (``--feed-scale-min``): where a contour-error tolerance would need a slower motion, the
 #: tolerance counts as not met there.

@@ -22,10 +22,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .compensation.blocks import Judgement
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
-from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
+from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
                        DEFAULT_FEED_SCALE_MIN, EXPORT_FORMATS, default_max_samples)
 from .errors import InputError, MachineLimitError, ToleranceError, notice
 from .files import OutputSet, check_signals
@@ -248,6 +249,8 @@ class RunResult:
     #: then the upper-bound plan and ``limited`` the compensated search's final compensation,
     #: its slow-downs and time map against that plan.
     feed: FeedWithinTolerance | None = None
+    #: Both commands judged on the draws of a machine ensemble (``run --draws``), or None.
+    draws: "DrawCheck | None" = None
 
     @property
     def commands(self) -> Trajectory:
@@ -318,6 +321,9 @@ class RunResult:
                                       self.simulated_after.orientation)):
             lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
                          f"mean {_reduction(before.mean(), after.mean())}")
+        if self.draws is not None:
+            lines += self.draws.table("line" if toolpath_format(self.source) == "gcode"
+                                      else "row")
         lines.append("largest simulated errors, where:")
         lines += ["  " + largest.format() for largest in self.largest_errors()]
         worse = self.worse_lines()
@@ -428,7 +434,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 contour_tolerance: ContourTolerance | None = None,
                 feed_scale_max: float = 1.0,
                 feed_scale_min: float = DEFAULT_FEED_SCALE_MIN,
-                write_anyway: bool = False) -> RunResult:
+                write_anyway: bool = False,
+                draws: int = DEFAULT_CHECK_DRAWS) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file) and ``controller`` have no
@@ -542,6 +549,15 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
                                          machine, controller, workers=workers)
     timings["virtual machine (both)"] = time.perf_counter() - start
+    checked = None
+    if draws > 1:
+        step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated and "
+                "compensated")
+        start = time.perf_counter()
+        checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
+                                 controller, simulated, line=limited.line,
+                                 ensemble=replace(ensemble or MachineEnsemble(), draws=draws))
+        timings["virtual machine (draws)"] = time.perf_counter() - start
 
     step(3, "write G-code")
     start = time.perf_counter()
@@ -563,7 +579,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
-                     stream=None if outputs is None else outputs.stream, feed=feed)
+                     stream=None if outputs is None else outputs.stream, feed=feed,
+                     draws=checked)
 
 
 def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
@@ -690,6 +707,100 @@ def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory
     # in pieces above AT_ONCE_SAMPLES: whole-program reference curves of a long program
     # were the peak of run's memory
     return contour_errors_program(reference, q_act, machine_obj.kinematics)
+
+
+@dataclass(frozen=True)
+class DrawCheck:
+    """The uncompensated and the compensated commands on every draw of a machine ensemble
+    (draw 0 the machine file's machine: ``RunResult.simulated_before`` / ``_after``), judged
+    per source line (or window) as learning judges them (:func:`~.compensation.blocks.judge`).
+    """
+
+    ensemble: MachineEnsemble
+    before: Judgement
+    after: Judgement
+    starts: np.ndarray
+
+    def reductions(self, quantity: str = "tip_max") -> np.ndarray:
+        """Per draw, the share of the uncompensated error the compensated commands removed
+        (1 = all), of ``quantity`` (``tip_max``, ``tip_mean``, ``ori_max``, ``ori_mean``)."""
+        key = {"tip_max": "tip_max_um", "tip_mean": "tip_mean_um", "ori_max": "ori_max_mrad",
+               "ori_mean": "ori_mean_mrad"}[quantity]
+        before = np.array([s[key] for s in self.before.summaries])
+        after = np.array([s[key] for s in self.after.summaries])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(before > 0, 1.0 - after / before, 0.0)
+
+    def worse_blocks(self) -> np.ndarray:
+        """Indices of the blocks where the compensated commands' worst draw exceeds the
+        uncompensated commands' worst draw by more than the block margins."""
+        from .compensation.blocks import worse_blocks
+
+        return np.flatnonzero(worse_blocks(self.after, self.before))
+
+    def table(self, where: str = "line") -> list[str]:
+        """Lines of the end-of-run table: median and worst over the draws."""
+        lines = [f"on {self.ensemble.describe()}:"]
+        keys = ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad")
+        for commands, judged in (("uncompensated", self.before), ("compensated", self.after)):
+            values = np.array([[s[key] for key in keys] for s in judged.summaries])
+            for label, row in (("median", np.median(values, axis=0)),
+                               ("worst", values.max(axis=0))):
+                lines.append(f"{commands + ' ' + label:<22}{row[0]:10.3f}{row[1]:10.3f}"
+                             f"{row[2]:10.4f}{row[3]:10.4f}")
+        for label, quantity in (("tip", "tip"), ("orientation", "ori")):
+            r_max = 100 * self.reductions(f"{quantity}_max")
+            r_mean = 100 * self.reductions(f"{quantity}_mean")
+            lines.append(f"  {label} reduction, median / worst draw: max "
+                         f"{np.median(r_max):.1f} / {r_max.min():.1f} %, mean "
+                         f"{np.median(r_mean):.1f} / {r_mean.min():.1f} %")
+        worse = self.worse_blocks().size
+        lines.append(f"  compensated worse than uncompensated (worst draw against worst draw, "
+                     f"beyond 0.1 um / 1 urad or 5 %) on {worse} {where}(s)"
+                     if worse else
+                     f"  compensated nowhere worse than uncompensated on the worst draw "
+                     f"(0.1 um / 1 urad or 5 % per {where})")
+        return lines
+
+
+def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj: Machine,
+                   controller: str, nominal: tuple[ContourErrors, ContourErrors], *,
+                   line: np.ndarray | None = None,
+                   ensemble: MachineEnsemble | None = None) -> DrawCheck:
+    """Both commands (``reference.q`` and ``q_compensated``) on every draw of ``ensemble``
+    (default :class:`MachineEnsemble` ()): draw 0, the machine file's machine, is ``nominal``
+    (their errors there, already simulated); the others are simulated one draw at a time, so
+    that one draw's encoder noise and motion are in memory at once (a long program)."""
+    from .compensation.blocks import block_starts, judge
+    from .simulation.virtual_machine import REALISTIC, simulate
+
+    ensemble = MachineEnsemble() if ensemble is None else ensemble
+    starts = block_starts(reference.n_samples, reference.ts, line)
+    rotary = [d.is_rotary for d in machine_obj.drives]
+    judged = {"before": [judge([nominal[0]], starts)], "after": [judge([nominal[1]], starts)]}
+    first = 1 if ensemble.nominal else 0
+    for draw in range(first, ensemble.draws):
+        option = ensemble.option(draw, reference.n_samples, rotary)
+        for label, q in (("before", reference.q), ("after", q_compensated)):
+            check_signals()
+            q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
+                             **option).q_act
+            errors = contour_errors_program(reference, q_act, machine_obj.kinematics)
+            judged[label].append(judge([errors], starts))
+    if not ensemble.nominal:     # draw 0 was drawn too: the nominal machine is not one
+        judged = {label: parts[1:] for label, parts in judged.items()}
+    before, after = (_stack_judgements(judged[label]) for label in ("before", "after"))
+    return DrawCheck(ensemble=ensemble, before=before, after=after, starts=starts)
+
+
+def _stack_judgements(parts) -> Judgement:
+    """One :class:`~.compensation.blocks.Judgement` of the draws judged one at a time."""
+    return Judgement(summaries=tuple(s for p in parts for s in p.summaries),
+                     tip_max=np.concatenate([p.tip_max for p in parts]),
+                     tip_mean=np.concatenate([p.tip_mean for p in parts]),
+                     orientation_max=np.concatenate([p.orientation_max for p in parts]),
+                     orientation_mean=np.concatenate([p.orientation_mean for p in parts]),
+                     finite=all(p.finite for p in parts))
 
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,

@@ -106,32 +106,34 @@ class MachineEnsemble:
         """The :func:`~.virtual_machine.simulate` options of each draw (beyond
         :data:`~.virtual_machine.REALISTIC`), for commands of ``n_samples`` samples;
         ``rotary`` marks the axes whose encoder values are the rotary ones."""
+        return [self.option(d, n_samples, rotary) for d in range(self.draws)]
+
+    def option(self, draw: int, n_samples: int,
+               rotary=(False, False, False, True, True)) -> dict:
+        """The options of draw ``draw`` alone (:meth:`options`): one draw's encoder noise in
+        memory at a time, for a long program checked draw by draw."""
+        if not 0 <= draw < self.draws:
+            raise ValueError(f"draw must be within [0, {self.draws}), got {draw!r}")
+        if draw == 0 and self.nominal:
+            return {}
         rotary = np.asarray(rotary, dtype=bool)
-        out = []
-        for d in range(self.draws):
-            if d == 0 and self.nominal:
-                out.append({})
-                continue
-            # one generator per draw: a draw does not change with the number of draws
-            rng = np.random.default_rng([self.seed, d])
-            option = dict(
-                friction_scale=1.0 + self.friction_spread * rng.uniform(-1, 1, (2, 5)),
-                inertia_scale=1.0 + self.inertia_spread * rng.uniform(-1, 1, 5),
-                damping_scale=1.0 + self.damping_spread * rng.uniform(-1, 1, 5))
-            resolution = np.where(rotary, self.encoder_resolution[1],
-                                  self.encoder_resolution[0])
-            noise = np.where(rotary, self.encoder_noise[1], self.encoder_noise[0])
-            offsets = rng.uniform(0, 1, 5)
-            if np.all(resolution > 0):
-                option.update(encoder_resolution=resolution,
-                              encoder_offset=offsets * resolution)
-            elif np.any(resolution > 0):
-                raise ValueError("encoder_resolution must be 0 for both kinds of axis or "
-                                 "for neither")
-            if np.any(noise > 0):
-                option.update(encoder_noise=rng.standard_normal((n_samples, 5)) * noise)
-            out.append(option)
-        return out
+        # one generator per draw: a draw does not change with the number of draws
+        rng = np.random.default_rng([self.seed, draw])
+        option = dict(
+            friction_scale=1.0 + self.friction_spread * rng.uniform(-1, 1, (2, 5)),
+            inertia_scale=1.0 + self.inertia_spread * rng.uniform(-1, 1, 5),
+            damping_scale=1.0 + self.damping_spread * rng.uniform(-1, 1, 5))
+        resolution = np.where(rotary, self.encoder_resolution[1], self.encoder_resolution[0])
+        noise = np.where(rotary, self.encoder_noise[1], self.encoder_noise[0])
+        offsets = rng.uniform(0, 1, 5)
+        if np.all(resolution > 0):
+            option.update(encoder_resolution=resolution, encoder_offset=offsets * resolution)
+        elif np.any(resolution > 0):
+            raise ValueError("encoder_resolution must be 0 for both kinds of axis or "
+                             "for neither")
+        if np.any(noise > 0):
+            option.update(encoder_noise=rng.standard_normal((n_samples, 5)) * noise)
+        return option
 
     def describe(self) -> str:
         """One line for tables and reports."""
