@@ -123,3 +123,48 @@ def test_nearest_sample_and_isolation_match_brute_force():
         distances = np.linalg.norm(samples[lo[i]:hi[i] + 1] - points[i], axis=1)
         assert lo[i] <= k <= hi[i]
         assert np.linalg.norm(samples[k] - points[i]) <= distances.min() * (1 + 1e-12)
+
+
+def test_nearest_sample_on_a_creeping_stretch_matches_brute_force():
+    """A reference that creeps (steps of 3e-10 mm, below the scan's round-off margin) and
+    rests exactly, as a heavily slowed program does at its stops: the nearest sample of points
+    near it and the contour errors are those of a brute-force search over the window."""
+    from precontour.prediction import contour
+
+    rng = np.random.default_rng(11)
+    n = 20_000
+    t = np.arange(n) * 1e-3
+    # the speed eases (C2, over 0.3 s) from 20 mm/s down to a creep of 3e-7 mm/s (3e-10 mm
+    # per sample) for 8 s, back up, and down to rest for 1 s, as a retimed program does
+    k = np.arange(n - 1)
+    ease = lambda x: np.clip(x, 0, 1) ** 3 * (10 - 15 * np.clip(x, 0, 1)
+                                             + 6 * np.clip(x, 0, 1) ** 2)
+    creep = ease((k - 5_700) / 300) * (1 - ease((k - 14_000) / 300))
+    rest = ease((k - 14_700) / 300) * (1 - ease((k - 16_000) / 300))
+    step = 0.02 * (1 - creep) + 3e-10 * creep
+    step = step * (1 - rest)
+    s = np.concatenate([[0.0], np.cumsum(step)])
+    P = np.stack([s, 0.2 * np.sin(s / 10), np.zeros(n)], axis=1)
+    O = np.tile([0.0, 0.0, 1.0], (n, 1))
+    ref = ReferencePath.from_samples(t, P, O)
+    _, _, samples, chord = ref._tip_arrays
+    base, lo, hi = ref._own_windows
+    points = P + rng.normal(0, 1e-3, P.shape)
+    picks = np.concatenate([rng.choice(np.arange(5_500, 16_500), 400, replace=False),
+                            rng.choice(n, 100, replace=False)])
+    for i in picks:
+        k = contour._nearest_sample(samples, chord, ref._tip_isolation, points[i], base[i],
+                                    lo[i], hi[i])
+        distances = np.linalg.norm(samples[lo[i]:hi[i] + 1] - points[i], axis=1)
+        assert lo[i] <= k <= hi[i]
+        assert np.linalg.norm(samples[k] - points[i]) <= distances.min() * (1 + 1e-12)
+    err = ref.errors(points, O)
+    for i in picks[:60]:
+        u = np.linspace(t[lo[i]], t[hi[i]], 50 * (hi[i] - lo[i]) + 1)
+        curve = ref.tip(u)
+        distances = np.linalg.norm(curve - points[i], axis=1)
+        dense = distances.min()
+        # a grid of spacing h misses the optimum at distance d by at most about h^2 / (8 d)
+        h = np.linalg.norm(np.diff(curve, axis=0), axis=1).max()
+        assert err.tip[i] <= dense + 1e-12
+        assert err.tip[i] >= dense - 1.5 * h**2 / (8 * dense) - 1e-12
