@@ -7,7 +7,9 @@ Two sections, each rewritten by its own run (``--sections``), each stamped:
     ``boat-xyzac.ngc``; searched where LinuxCNC installs its examples, or ``--demos DIR``) run
     as ``precontour run PROGRAM --tcp --machine linuxcnc-xyzac-trt --controller pid-high``:
     planned and compensated duration, slowed windows, kinks smoothed, the simulated contour
-    errors before and after, and the time ``run`` took.
+    errors before and after, the lines worse than uncompensated and the time ``run`` took;
+    with ``--learn N`` (default 4) each program also with ``--learn N`` (segment by segment
+    above 500,000 samples; ``--learn 0`` measures without it only).
 ``learn``
     The built-in paths and the test paths ``fan25`` and ``flank`` of
     ``measure_compensation.py``, written as CL data and run as ``precontour run PATH.csv`` with
@@ -55,7 +57,7 @@ def summary_pair(result) -> tuple[dict, dict]:
     return result.simulated_before.summary(), result.simulated_after.summary()
 
 
-def linuxcnc_section(demos: Path | None, folder: Path) -> str:
+def linuxcnc_section(demos: Path | None, folder: Path, passes: int = 0) -> str:
     found = []
     for name in PROGRAMS:
         candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
@@ -63,26 +65,28 @@ def linuxcnc_section(demos: Path | None, folder: Path) -> str:
         if path is not None:
             found.append(path)
     rows, places = [], []
-    for path in found:
+    for path, learn in [(p, n) for p in found for n in sorted({0, passes})]:
         start = time.perf_counter()
         result = run_program(path, RunOutputs(program=folder / f"{path.stem}-comp.ngc"),
-                             machine="linuxcnc-xyzac-trt", controller="pid-high", tcp=True)
+                             machine="linuxcnc-xyzac-trt", controller="pid-high", tcp=True,
+                             learn=learn)
         took = time.perf_counter() - start
         before, after = summary_pair(result)
         planned, final = result.planned.duration, result.commands.duration
         rows.append([
             f"`{path.name}` ({len(path.read_text(errors='replace').splitlines()):,} lines)",
+            str(learn),
             f"{planned:,.0f} s", f"{final:,.0f} s ({100 * (final / planned - 1):+.1f} %)",
             len(result.limited.slowdowns), len(result.limited.kinks),
             f"{before['tip_max_um']:.3g} → {after['tip_max_um']:.3g}",
             f"{before['tip_mean_um']:.3g} → {after['tip_mean_um']:.3g}",
             f"{before['ori_max_mrad']:.3g} → {after['ori_max_mrad']:.3g}",
-            *draw_cells(result),
+            len(result.worse_lines()), *draw_cells(result),
             f"{result.commands.n_samples:,}", f"{took:.0f} s"])
         # where the largest remaining tip error is, and what the uncompensated command had there
         i = int(np.argmax(result.simulated_after.tip))
         line = result.limited.line
-        places.append(f"- `{path.name}`: the largest remaining tip error, "
+        places.append(f"- `{path.name}` (`--learn {learn}`): the largest remaining tip error, "
                       f"{1e3 * result.simulated_after.tip[i]:.3g} um, is at t = "
                       f"{result.commands.t[i]:.3f} s"
                       + (f", line {int(line[i])}" if line is not None else "")
@@ -101,11 +105,11 @@ def linuxcnc_section(demos: Path | None, folder: Path) -> str:
         lines.append("LinuxCNC's example programs were not found (`--demos DIR`).")
     else:
         lines.append(markdown_table(
-            ["program", "planned", "after `run`", "windows slowed", "kinks smoothed",
-             "tip max, um", "tip mean, um", "orientation max, mrad",
-             "worst draw: tip max, um", "removed, median / worst", "lines worse",
-             "samples", "took"],
-            rows, "lrrrrlllllrlr"))
+            ["program", "`--learn`", "planned", "after `run`", "windows slowed",
+             "kinks smoothed", "tip max, um", "tip mean, um", "orientation max, mrad",
+             "lines worse", "worst draw: tip max, um", "removed, median / worst",
+             "lines worse, worst draw", "samples", "took"],
+            rows, "lrrrrrlllrllrrr"))
         lines += [""] + places
     return "\n".join(lines)
 
@@ -187,7 +191,7 @@ def main(argv=None) -> int:
         replace_section(args.output, "intro", INTRO)
         for section in args.sections.split(","):
             if section == "linuxcnc":
-                body = linuxcnc_section(args.demos, folder)
+                body = linuxcnc_section(args.demos, folder, args.learn)
             elif section == "learn":
                 body = learn_section(args.learn, folder)
             else:

@@ -13,7 +13,8 @@ take their system first, and its strategy is a keyword, not another function:
     errors = contour_errors(servo, comp.reference, sim)
 
 Long programs are handled inside (in overlapping pieces above
-:data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples); the stage functions these
+:data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples, and learning within the
+limits segment by segment); the stage functions these
 call stay where they are, for the stages themselves and the command line.
 """
 
@@ -179,9 +180,10 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
     method) against the realistic virtual machine running ``learn_controller`` (default:
     :func:`learning_controller`), every decision on the worst of ``ensemble``'s draws (default
     :class:`~precontour.simulation.ensemble.MachineEnsemble`), the command kept nowhere worse
-    than uncompensated. Learning is skipped, with a one-line notice, where it cannot run: a
-    trajectory not sampled at the servo period, or one longer than
-    :data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples (compensated in pieces).
+    than uncompensated (within the limits, segment by segment above
+    :data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples). Learning is skipped,
+    with a one-line notice, where it cannot run: a trajectory not sampled at the servo period,
+    or, with ``limits=False``, one longer than that (compensated in pieces).
     ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (defaults: the compensation's).
     ``progress(pass, summary)``: each unconstrained pass; ``learning_progress(label,
     summary)``: each command learning tries."""
@@ -201,7 +203,7 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                          field="Px")
     learner = learning_controller(servo, learn_controller)
     if learn and method == "contour":
-        if not can_learn(trajectory, servo.machine):
+        if not can_learn(trajectory, servo.machine, whole=not limits):
             learn = 0
         elif is_closed_loop(learner):
             notice(f"learning against controller {learner.name!r}, a transfer function "

@@ -24,6 +24,7 @@ import numpy as np
 
 from .compensation.blocks import Judgement
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
+from .compensation.segments import learn_by_segments
 from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
 from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
@@ -443,8 +444,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``: planning, as
     :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
     virtual machine after the compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
-    0: none; skipped, with a notice, for a program not sampled at the servo period or longer
-    than :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
+    0: none; skipped, with a notice, for a program not sampled at the servo period; segment
+    by segment above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
     draws of ``ensemble`` (default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
     result nowhere worse than uncompensated on them, block by block (each source line;
     :func:`learn_on_ensemble`). ``min_speed``: the floor of the local slow-downs that keep
@@ -595,15 +596,18 @@ def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
     return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
 
 
-def can_learn(reference: Trajectory, machine_obj: Machine) -> bool:
+def can_learn(reference: Trajectory, machine_obj: Machine, *, whole: bool = False) -> bool:
     """Whether learning against the virtual machine can run on ``reference``; says why not,
-    in one notice: the virtual machine runs at the servo period, and learning runs the whole
-    trajectory on it (a longer one is compensated in pieces, linearly)."""
+    in one notice: the virtual machine runs at the servo period. Learning within the limits
+    runs a trajectory of any length (segment by segment above
+    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, :mod:`.compensation.segments`);
+    ``whole``: learning that runs the whole trajectory at once (the unconstrained
+    compensation's), refused above that many samples (compensated in pieces, linearly)."""
     if not machine_obj.at_servo_period(reference.ts):
         notice(f"no learning: the trajectory's sample period {reference.ts:g} s is not the "
                f"servo period {machine_obj.servo_period:g} s of the virtual machine")
         return False
-    if reference.n_samples > AT_ONCE_SAMPLES:
+    if whole and reference.n_samples > AT_ONCE_SAMPLES:
         notice(f"no learning: {reference.n_samples} samples are more than "
                f"{AT_ONCE_SAMPLES} (compensated in pieces)")
         return False
@@ -649,7 +653,13 @@ def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, contro
     ``ensemble`` of the realistic virtual machine running ``controller``
     (:func:`~.simulation.ensemble.ensemble_actual`): every choice is taken on the worst draw,
     and the command kept is nowhere worse than the uncompensated one on every draw, in whole
-    and block by block."""
+    and block by block. Above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, segment
+    by segment (:func:`~.compensation.segments.learn_by_segments`)."""
+    if limited.reference.n_samples > AT_ONCE_SAMPLES:
+        return learn_by_segments(
+            limited, machine_obj.kinematics, models, limits,
+            lambda t: ensemble_actual(t, machine_obj, controller, ensemble), passes,
+            progress=progress, **learning)
     actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
     return learn_within_limits(limited, machine_obj.kinematics, models, limits, actual, passes,
                                progress=progress, **learning)

@@ -36,7 +36,7 @@ from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
-from .stops import LIMITED_SMOOTHING, MachineActual, learn_at_stops
+from .stops import LIMITED_SMOOTHING, LearningReport, MachineActual, learn_at_stops
 
 #: Re-timing rounds before giving up.
 MAX_ROUNDS = 16
@@ -272,38 +272,77 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
     :func:`~.stops.learn_at_stops` (``update``, ``local``). ``result.learning`` reports what
     was tried and kept."""
     reference = limited.reference
-    ts, t0 = reference.ts, float(reference.t[0])
+    q_start = limited.result.trajectory.q
     path = ReferencePath.from_trajectory(reference)
+    q, report = learn_commands(reference, q_start, kinematics, models, limits, machine_actual,
+                               passes, line=limited.line, progress=progress, path=path,
+                               **learning)
+    result = replace(limited.result, learning=report)
+    if q is not q_start:
+        after = contour_errors(path, predicted_actual(reference.t, q, models), kinematics)
+        result = replace(result, trajectory=reference.with_axes(q), after=after,
+                         iterations=0 if report.chosen == "uncompensated" else result.iterations)
+    return replace(limited, result=result,
+                   check=check_limits(q, reference.ts, limits, t0=float(reference.t[0])))
+
+
+def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, models,
+                   limits: AxisLimits, machine_actual: MachineActual, passes: int, *,
+                   line: np.ndarray | None = None, progress=None,
+                   scored: tuple[int, int] | None = None, project=None,
+                   path: ReferencePath | None = None, **learning) -> tuple[np.ndarray, LearningReport]:
+    """The learning of :func:`learn_within_limits` on ``reference`` from the commands
+    ``q_start``: the command kept and the report (:func:`~.stops.learn_at_stops`).
+
+    For learning by segment (:mod:`.segments`): ``scored = (first, stop)`` judges only the
+    contour errors of those samples (the others count as zero for every command, so they
+    neither choose nor fall back), and ``project(q)`` is the command that is in fact run for
+    a command ``q`` learning proposes (its lead-in held at the commands already decided); the
+    machine model, the limit check and the fallbacks see projected commands, the
+    uncompensated ``reference.q`` itself excepted. The command returned is not projected.
+    ``path``: the reference's curves, where already built.
+    """
+    ts, t0 = reference.ts, float(reference.t[0])
+    path = ReferencePath.from_trajectory(reference) if path is None else path
+    project = (lambda q: q) if project is None else project
 
     def errors_of(q_actual):
-        return contour_errors(path, q_actual, kinematics)
+        return _scored(contour_errors(path, q_actual, kinematics), scored, 0)
 
     def tail_errors_of(q_actual, first):
-        return contour_errors(path, q_actual, kinematics, t=path.t[first:])
+        return _scored(contour_errors(path, q_actual, kinematics, t=path.t[first:]), scored,
+                       first)
 
     def within_limits(q):
-        return check_limits(q, ts, limits, t0=t0).ok
+        return check_limits(project(q), ts, limits, t0=t0).ok
 
-    q_start = limited.result.trajectory.q
     idle_tolerance = compensation_axis_tolerances()
 
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)
 
-    tracking = hold(reference.q + _predicted(reference, models, {}).e)
-    q, report = learn_at_stops(reference.q, q_start, ts, machine_actual, errors_of,
-                               learning_step(reference, path, kinematics, hold=hold),
-                               passes=passes,
-                               smoothing=LIMITED_SMOOTHING, admissible=within_limits,
-                               progress=progress, line=limited.line,
-                               fallbacks=(("tracking-error pre-compensation", tracking),),
-                               t0=t0, tail_errors_of=tail_errors_of, **learning)
-    result = replace(limited.result, learning=report)
-    if q is not q_start:
-        after = errors_of(predicted_actual(reference.t, q, models))
-        result = replace(result, trajectory=reference.with_axes(q), after=after,
-                         iterations=0 if report.chosen == "uncompensated" else result.iterations)
-    return replace(limited, result=result, check=check_limits(q, ts, limits, t0=t0))
+    def machine(q):
+        return machine_actual(q if q is reference.q else project(q))
+
+    tracking = project(hold(reference.q + _predicted(reference, models, {}).e))
+    return learn_at_stops(reference.q, q_start, ts, machine, errors_of,
+                          learning_step(reference, path, kinematics, hold=hold),
+                          passes=passes,
+                          smoothing=LIMITED_SMOOTHING, admissible=within_limits,
+                          progress=progress, line=line,
+                          fallbacks=(("tracking-error pre-compensation", tracking),),
+                          t0=t0, tail_errors_of=tail_errors_of, **learning)
+
+
+def _scored(errors, scored: tuple[int, int] | None, first: int):
+    """``errors`` (of samples ``first`` on) with the tip and orientation errors outside the
+    samples ``scored`` = (first, stop) set to zero; ``errors`` itself when None."""
+    if scored is None:
+        return errors
+    index = first + np.arange(errors.tip.size)
+    outside = (index < scored[0]) | (index >= scored[1])
+    return replace(errors, tip=np.where(outside, 0.0, errors.tip),
+                   orientation=np.where(outside, 0.0, errors.orientation))
 
 
 #: The splice margins (spec section 6 compensation is local in time):
