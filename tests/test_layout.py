@@ -11,7 +11,8 @@ PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
 STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory",
           "tables",
-          "prediction", "compensation", "simulation", "planning", "identification", "workflow",
+          "prediction", "compensation", "simulation", "planning", "options", "identification",
+          "workflow",
           "reports", "system", "cli")
 
 

@@ -708,6 +708,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
 
 
 def run_compensate(args: argparse.Namespace) -> int:
+    from .options import LearningOptions, LimitOptions
     from .system import compensate, load_servo
     from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
 
@@ -726,11 +727,14 @@ def run_compensate(args: argparse.Namespace) -> int:
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
     with _about(args.trajectory):
-        comp = compensate(servo, traj, method=args.method, limits=not args.ignore_limits,
-                          learn=args.learn, iterations=args.iterations,
-                          min_speed=args.min_speed, learn_controller=args.learn_controller,
-                          tol_linear=args.tol_linear, tol_rotary=args.tol_rotary,
-                          progress=progress, learning_progress=learning_progress)
+        comp = compensate(servo, traj, method=args.method,
+                          limits=LimitOptions(keep=not args.ignore_limits,
+                                              min_speed=args.min_speed),
+                          learn=LearningOptions(passes=args.learn,
+                                                controller=args.learn_controller),
+                          iterations=args.iterations, tol_linear=args.tol_linear,
+                          tol_rotary=args.tol_rotary, progress=progress,
+                          learning_progress=learning_progress)
     if comp.within_limits:
         print(f"within the machine's limits: "
               + (f"slowed in {len(comp.slowdowns)} window(s), +{comp.added_time:.3f} s, down "
@@ -964,6 +968,8 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_run(args: argparse.Namespace) -> int:
+    from .options import LimitOptions, ToleranceOptions
+    from .planning import ContourTolerance
     from .reports.progress import ProgressLine
     from .workflow import RunOutputs, run_program, write_run_outputs
 
@@ -975,6 +981,10 @@ def run_run(args: argparse.Namespace) -> int:
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
                          report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
+    feed = ToleranceOptions(None if args.tolerance is None
+                            else ContourTolerance.in_um(*args.tolerance),
+                            feed_scale_max=args.feed_scale_max,
+                            feed_scale_min=args.feed_scale_min, write_anyway=args.write_anyway)
     progress = ProgressLine(sys.stderr)
     try:
         result = run_program(args.program, outputs, machine=args.machine,
@@ -982,11 +992,8 @@ def run_run(args: argparse.Namespace) -> int:
                              corner_tolerance=args.corner_tol, max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
-                             min_speed=args.min_speed,
-                             contour_tolerance=_tolerance_of(args.tolerance),
-                             feed_scale_max=args.feed_scale_max,
-                             feed_scale_min=args.feed_scale_min,
-                             write_anyway=args.write_anyway)
+                             limits=LimitOptions(min_speed=args.min_speed),
+                             contour_tolerance=feed)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):
@@ -1005,17 +1012,6 @@ def run_run(args: argparse.Namespace) -> int:
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
     return 0
-
-
-def _tolerance_of(value):
-    """The parsed --tolerance (um, mrad) as the library's tolerance (mm, rad), or None."""
-    if value is None:
-        return None
-    from .planning import ContourTolerance
-
-    tip, orientation = value
-    return ContourTolerance(tip=1e-3 * tip,
-                            orientation=None if orientation is None else 1e-3 * orientation)
 
 
 def run_machines(args: argparse.Namespace) -> int:

@@ -93,6 +93,12 @@ class ContourTolerance:
                                  f"{value!r}", field="--tolerance")
             object.__setattr__(self, name, float(value))
 
+    @classmethod
+    def in_um(cls, tip_um: float, ori_mrad: float | None = None) -> "ContourTolerance":
+        """The tolerance of ``tip_um`` um at the tool tip and, optionally, ``ori_mrad`` mrad
+        of orientation (the units of ``run --tolerance TIP_UM[,ORI_MRAD]``)."""
+        return cls(tip=1e-3 * tip_um, orientation=None if ori_mrad is None else 1e-3 * ori_mrad)
+
     def ratios(self, errors: ContourErrors) -> np.ndarray:
         """Each sample's largest error over its tolerance (tip, and orientation if bounded)."""
         ratio = errors.tip / self.tip
@@ -338,15 +344,17 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
-                refine=None, exempt_lines=None, progress=None, **options) -> FeedSearch:
+                refine=None, exempt_lines=None, progress=None,
+                iterations: int = 1) -> FeedSearch:
     """The fastest local retiming of ``planned`` whose contour errors keep ``tolerance`` on
     the realistic virtual machine of ``machine`` running ``controller``; see the module
     docstring.
 
     ``compensate``: pre-compensate the commands within ``limits`` (default the machine's) on
-    each timing, with the error models ``models`` (default the controller's) and
-    ``options`` of :func:`~precontour.compensation.within_limits.compensate_within_limits`
-    (whose own slow-down floor is ``limits_min_speed``); False: the commands are the
+    each timing, with the error models ``models`` (default the controller's), up to
+    ``iterations`` passes (:func:`~precontour.compensation.within_limits.
+    compensate_within_limits`, whose own slow-down floor is ``limits_min_speed``); False:
+    the commands are the
     reference itself (kept within the limits). ``min_speed``: the lowest speed, a fraction
     of ``planned``'s, 0 < min_speed <= 1. ``ensemble``: the draws a timing that keeps the
     tolerance on the machine file's machine is checked on (None: that machine only).
@@ -379,7 +387,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                          f"({current.n_samples} samples)")
             limited = compensate_within_limits(current, machine.kinematics, models, limits,
                                                line=current_line, min_speed=limits_min_speed,
-                                               **options)
+                                               iterations=iterations)
             index = np.interp(limited.planned_index, np.arange(current.n_samples), index)
             current, current_line = limited.reference, limited.line
             if refine is not None:
