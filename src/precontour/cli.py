@@ -878,7 +878,8 @@ def run_identify(args: argparse.Namespace) -> int:
     columns = None if args.columns is None else args.columns.split(",")
     log = read_servo_log(args.log, fmt=args.format, columns=columns,
                          period=args.period, default_period=base.servo_period,
-                         angle_scale=np.pi / 180 if args.angles == "deg" else 1.0)
+                         angle_scale=np.pi / 180 if args.angles == "deg" else 1.0,
+                         axis_names=base.axis_names)
     result = identify(log, base, data, name=args.name, order=args.order,
                       base_controller=args.base_controller)
     with outputs:
