@@ -130,6 +130,11 @@ class ProgramPrediction:
     n_knots: tuple[int, ...]
     pieces: int
 
+    @property
+    def max_abs_error(self) -> np.ndarray:
+        """max |e| of each axis over the program, shape (5,)."""
+        return np.abs(self.e).max(axis=0)
+
 
 def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorModel, ...],
                    kinematics, *, tol_linear: float | None = None,
