@@ -42,7 +42,7 @@ _PUBLIC = {
     "ProgramError": "errors", "ToolPathError": "errors",
     "Machine": "machine", "load_machine": "machine",
     "ContourErrors": "prediction", "ReferencePath": "prediction",
-    "SimulationResult": "simulation",
+    "MachineEnsemble": "simulation", "SimulationResult": "simulation",
     "LearningOptions": "options", "LimitOptions": "options", "ToleranceOptions": "options",
     "ContourTolerance": "planning",
     "read_trajectory": "tables", "write_columns": "tables",
@@ -61,7 +61,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and editors
     from .prediction import ContourErrors, ReferencePath
     from .options import LearningOptions, LimitOptions, ToleranceOptions
     from .planning import ContourTolerance
-    from .simulation import SimulationResult
+    from .simulation import MachineEnsemble, SimulationResult
     from .system import (Compensation, Servo, compensate, contour_errors, load_servo,
                          plot_contour_errors, predict, simulate)
     from .tables import read_trajectory, write_columns
