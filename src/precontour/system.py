@@ -279,11 +279,14 @@ def learning_controller(servo: Servo, name: str | None = None):
     return controller
 
 
-def simulate(servo: Servo, commands, *, realism: str = "realistic", **scatter):
+def simulate(servo: Servo, commands, *, realism: str = "realistic",
+             friction_scale=1.0, inertia_scale=1.0, damping_scale=1.0,
+             encoder_resolution=None, encoder_offset=None, encoder_noise=None):
     """The drives of ``servo`` following ``commands`` (a Trajectory, a :class:`Compensation`
     or an (N, 5) array sampled at the servo period) on the virtual machine; ``realism``: a
-    key of :data:`REALISM`. ``scatter``: a true machine's departures from the machine file
-    (``friction_scale``, ``inertia_scale``, ``damping_scale``, the encoder's). Returns a
+    key of :data:`REALISM`. The rest: a true machine's departures from the machine file
+    (``friction_scale``, ``inertia_scale``, ``damping_scale``, the encoder's; as for
+    :func:`precontour.simulation.simulate`). Returns a
     :class:`~precontour.simulation.SimulationResult`."""
     from .simulation.virtual_machine import simulate as _simulate
 
@@ -291,7 +294,10 @@ def simulate(servo: Servo, commands, *, realism: str = "realistic", **scatter):
         raise InputError(f"unknown realism {realism!r}; choose one of {', '.join(REALISM)}",
                          field="realism")
     t, q = _time_and_commands(servo, commands)
-    return _simulate(t, q, servo.machine, servo.controller, **REALISM[realism], **scatter)
+    return _simulate(t, q, servo.machine, servo.controller, **REALISM[realism],
+                     friction_scale=friction_scale, inertia_scale=inertia_scale,
+                     damping_scale=damping_scale, encoder_resolution=encoder_resolution,
+                     encoder_offset=encoder_offset, encoder_noise=encoder_noise)
 
 
 def plot_contour_errors(servo: Servo, reference, actuals: dict, *, axes=None):

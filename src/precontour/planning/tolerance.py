@@ -512,15 +512,19 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                           tolerance: ContourTolerance, *, programmed: Trajectory | None = None,
                           feed_scale_max: float = 1.0, min_speed: float | None = None,
                           line: np.ndarray | None = None, ensemble: MachineEnsemble | None = None,
-                          refine=None, exempt_lines=None, progress=None,
-                          **search) -> FeedWithinTolerance:
+                          refine=None, exempt_lines=None, progress=None, models=None,
+                          limits: AxisLimits | None = None,
+                          limits_min_speed: float = MIN_SPEED, iterations: int = 1,
+                          where: str = "line", max_rounds: int = MAX_ROUNDS
+                          ) -> FeedWithinTolerance:
     """The compensated search and the uncompensated baseline (:func:`search_feed`) from the
     upper-bound plan ``planned`` (``feed_scale_max`` times the programmed feed), and the
     program as programmed (``programmed``, default ``planned``) measured uncompensated.
     ``min_speed``: the lowest speed as a fraction of ``planned``'s (default
     :data:`~precontour.defaults.DEFAULT_FEED_SCALE_MIN` of the programmed feed, i.e. that
     over ``feed_scale_max``). ``refine``: the compensated search's, ``exempt_lines``: both
-    searches' and the programmed errors' (:func:`search_feed`)."""
+    searches' and the programmed errors'; ``models``, ``limits``, ``limits_min_speed``,
+    ``iterations``, ``where``, ``max_rounds``: both searches' (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
     if min_speed is None:
         min_speed = min(1.0, DEFAULT_FEED_SCALE_MIN / feed_scale_max)
@@ -529,7 +533,9 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
                                  getattr(programmed, "line", None), exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
-                  exempt_lines=exempt_lines, **search)
+                  exempt_lines=exempt_lines, models=models, limits=limits,
+                  limits_min_speed=limits_min_speed, iterations=iterations, where=where,
+                  max_rounds=max_rounds)
     baseline = search_feed(planned, machine, controller, tolerance, compensate=False, **common)
     compensated = search_feed(planned, machine, controller, tolerance, compensate=True,
                               refine=refine, **common)
