@@ -75,3 +75,20 @@ def test_a_former_spelling_beside_an_options_object_is_refused(servo):
         compensate(servo, circle, limits=LimitOptions(), min_speed=0.5)
     with pytest.raises(InputError, match="--learn"):
         compensate(servo, circle, learn=-1)
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(contour_tolerance=ToleranceOptions(ContourTolerance(0.01)), feed_scale_min=0.2),
+     "give feed_scale_min in contour_tolerance"),
+    (dict(feed_scale_max=2.0), "apply with --tolerance only"),
+    (dict(contour_tolerance=ContourTolerance(0.01), feed_scale_max=0.5, feed_scale_min=0.6),
+     "is above the highest"),
+    (dict(limits=LimitOptions(keep=False)), "run keeps the machine's limits"),
+    (dict(limits=LimitOptions(), min_speed=0.5), "give min_speed in limits"),
+])
+def test_run_program_checks_its_options_before_reading_anything(options, message, tmp_path):
+    from precontour.workflow import run_program
+
+    with pytest.raises(InputError, match=message):
+        run_program(tmp_path / "not-read.ngc", machine="zhang2013", controller="pid-low",
+                    **options)

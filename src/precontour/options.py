@@ -22,7 +22,7 @@ fastest feed within a contour-error tolerance (``run --tolerance``, ``--feed-sca
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -33,7 +33,7 @@ from .planning.tolerance import ContourTolerance
 from .simulation.ensemble import MachineEnsemble
 
 __all__ = ["LearningOptions", "LimitOptions", "ToleranceOptions", "learning_options",
-           "limit_options"]
+           "limit_options", "with_former_spellings"]
 
 
 def _whole(value) -> bool:
@@ -170,3 +170,17 @@ def limit_options(limits) -> LimitOptions:
     if isinstance(limits, LimitOptions):
         return limits
     return LimitOptions(keep=limits)
+
+
+def with_former_spellings(value, kind: type, make, name: str, **former):
+    """``value`` as options of ``kind`` (itself, or ``make(value)`` of a plain value) with the
+    fields given in their former spellings (``former``: field -> value, None where not given).
+    Beside an options object they are refused: the object holds them."""
+    given = {key: v for key, v in former.items() if v is not None}
+    if isinstance(value, kind):
+        if given:
+            raise InputError(f"give {', '.join(given)} in {name} ({kind.__name__}), not "
+                             "beside it", field=next(iter(given)))
+        return value
+    options = make(value)
+    return replace(options, **given) if given else options

@@ -27,7 +27,8 @@ import numpy as np
 
 from .errors import InputError
 from .machine import Machine, load_machine
-from .options import LearningOptions, LimitOptions, learning_options, limit_options
+from .options import (LearningOptions, LimitOptions, learning_options, limit_options,
+                      with_former_spellings)
 from .prediction.contour import ContourErrors, ReferencePath
 from .prediction.contour import contour_errors as _contour_errors
 from .trajectory.limits import AxisLimits
@@ -198,9 +199,10 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
     if method not in METHODS:
         raise InputError(f"unknown compensation method {method!r}; choose one of "
                          f"{', '.join(METHODS)}", field="method")
-    learning = _with_former(learn, LearningOptions, learning_options, "learn",
-                            controller=learn_controller, ensemble=ensemble)
-    limit = _with_former(limits, LimitOptions, limit_options, "limits", min_speed=min_speed)
+    learning = with_former_spellings(learn, LearningOptions, learning_options, "learn",
+                                     controller=learn_controller, ensemble=ensemble)
+    limit = with_former_spellings(limits, LimitOptions, limit_options, "limits",
+                                  min_speed=min_speed)
     if iterations < 1:
         raise InputError(f"iterations must be >= 1, got {iterations}", field="--iterations")
     if not trajectory.has_reference:
@@ -249,19 +251,6 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                         after=result.after, passes=result.iterations, slowdowns=(),
                         learning=result.learning, within_limits=False,
                         learning_controller=learner)
-
-
-def _with_former(value, kind, make, name: str, **former):
-    """``value`` (an options object of ``kind``, or the plain value ``make`` takes) with the
-    fields given in their former spellings; beside an options object, those are refused."""
-    given = {key: v for key, v in former.items() if v is not None}
-    if isinstance(value, kind):
-        if given:
-            raise InputError(f"give {', '.join(given)} in {name} ({kind.__name__}), not "
-                             "beside it", field=next(iter(given)))
-        return value
-    options = make(value)
-    return replace(options, **given) if given else options
 
 
 def learning_controller(servo: Servo, name: str | None = None):

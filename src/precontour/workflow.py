@@ -23,15 +23,15 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
-from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
+from .compensation.within_limits import (LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
 from .defaults import (DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
-                       DEFAULT_FEED_SCALE_MIN, EXPORT_FORMATS, default_max_samples)
+                       EXPORT_FORMATS, default_max_samples)
 from .errors import InputError, MachineLimitError, ToleranceError, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
-                      limit_options)
+                      limit_options, with_former_spellings)
 from .planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
 from .prediction.contour import ContourErrors
 from .simulation.ensemble import MachineEnsemble, ensemble_actual
@@ -467,33 +467,20 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
     machine's limits cannot be kept."""
     learning = learning_options(learn)
-    limits = _former_spellings(limit_options(limits), "limits", min_speed=min_speed)
+    limits = with_former_spellings(limits, LimitOptions, limit_options, "limits",
+                                   min_speed=min_speed)
     if not limits.keep:
         raise InputError("run keeps the machine's limits (it writes a program a machine "
                          "runs)", field="--ignore-limits")
-    if not isinstance(contour_tolerance, ToleranceOptions):
-        contour_tolerance = ToleranceOptions(
-            contour_tolerance, **{name: value for name, value in (
-                ("feed_scale_max", feed_scale_max), ("feed_scale_min", feed_scale_min),
-                ("write_anyway", write_anyway)) if value is not None})
-    else:
-        contour_tolerance = _former_spellings(
-            contour_tolerance, "contour_tolerance", feed_scale_max=feed_scale_max,
-            feed_scale_min=feed_scale_min, write_anyway=write_anyway)
+    contour_tolerance = with_former_spellings(
+        contour_tolerance, ToleranceOptions, ToleranceOptions, "contour_tolerance",
+        feed_scale_max=feed_scale_max, feed_scale_min=feed_scale_min,
+        write_anyway=write_anyway)
     return _run_program(program, outputs, machine=machine, controller=controller, tcp=tcp,
                         dwell=dwell, corner_tolerance=corner_tolerance,
                         max_samples=max_samples, iterations=iterations, tolerance=tolerance,
                         progress=progress, workers=workers, learning=learning,
                         ensemble=ensemble, limits=limits, feed_options=contour_tolerance)
-
-
-def _former_spellings(options, name: str, **given):
-    """``options`` with nothing given in a former spelling, which belongs in it."""
-    given = [key for key, value in given.items() if value is not None]
-    if given:
-        raise InputError(f"give {', '.join(given)} in {name} ({type(options).__name__}), "
-                         "not beside it", field=given[0])
-    return options
 
 
 def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
