@@ -5,12 +5,14 @@ friction, feed-forward).
 Run: python examples/02_compensate_and_measure.py
 """
 
-from precontour import (builtin_path, compensate, contour_errors, generate_trajectory,
-                        load_servo, simulate)
+from precontour import (LimitOptions, builtin_path, compensate, contour_errors,
+                        generate_trajectory, load_servo, simulate)
 
 servo = load_servo("zhang2013", "pid-high")        # kinematics, drives, controller, limits
 traj = generate_trajectory(builtin_path("paper"), servo.machine)
-comp = compensate(servo, traj)                     # limits=True, learn=0: the defaults
+# within the limits, slowed down to half the speed at most (the default; limits=False: none);
+# learn=LearningOptions(passes=4) would also learn against the virtual machine
+comp = compensate(servo, traj, limits=LimitOptions(min_speed=0.5))
 
 for label, commands in (("uncompensated", comp.reference), ("pre-compensated", comp)):
     errors = contour_errors(servo, comp.reference, simulate(servo, commands)).summary()

@@ -40,9 +40,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
-        main_run, _ = compute_compare(Path(folder) / "compare", builtin="paper")
+        main_run = compute_compare(Path(folder) / "compare", builtin="paper")
         smaller = [compute_compare(Path(folder) / f"compare-{pct}", builtin="paper",
-                                   model_errors=(pct / 100, -pct / 100))[0]
+                                   model_errors=(pct / 100, -pct / 100))
                    for pct in (float(p) for p in args.model_errors.split(",") if p.strip())]
     parts = ["# The paper's claims, measured", "",
              stamp() + f" ({time.perf_counter() - start:.0f} s.)", "",

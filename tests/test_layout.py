@@ -11,7 +11,8 @@ PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
 STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory",
           "tables",
-          "prediction", "compensation", "simulation", "planning", "identification", "workflow",
+          "prediction", "compensation", "simulation", "planning", "options", "identification",
+          "workflow",
           "reports", "system", "cli")
 
 
@@ -116,3 +117,20 @@ def test_examples_use_only_the_public_face():
                 assert not missing, f"{path.name} imports {missing}"
             elif isinstance(node, ast.Import):
                 assert not any(a.name.startswith("precontour.") for a in node.names), path.name
+
+
+def test_the_command_line_holds_no_numerics():
+    """cli.py parses, calls one library function per command and prints: it imports no
+    numerical package anywhere (not even inside a command), so any computing it needed
+    would have to live in a stage, where a library caller gets it too."""
+    numerical = ("numpy", "scipy", "numba", "matplotlib", "pandas", "pyarrow")
+    found = []
+    for node in ast.walk(ast.parse(MODULES["precontour.cli"].read_text())):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names = [node.module or ""]
+        else:
+            continue
+        found += [name for name in names if name.split(".")[0] in numerical]
+    assert not found, found

@@ -10,6 +10,7 @@ stages before it::
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
     identification/ drive models from servo logs, the excitation motion
+    options.py     the jobs' options as small frozen objects (learning, limits, tolerance)
     workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
     system.py      the servo system (machine + controller, made once) and the entry points
                    that take it first: predict, compensate, simulate, contour_errors
@@ -41,7 +42,9 @@ _PUBLIC = {
     "ProgramError": "errors", "ToolPathError": "errors",
     "Machine": "machine", "load_machine": "machine",
     "ContourErrors": "prediction", "ReferencePath": "prediction",
-    "SimulationResult": "simulation",
+    "MachineEnsemble": "simulation", "SimulationResult": "simulation",
+    "LearningOptions": "options", "LimitOptions": "options", "ToleranceOptions": "options",
+    "ContourTolerance": "planning",
     "read_trajectory": "tables", "write_columns": "tables",
     "Program": "toolpath", "ToolPath": "toolpath", "read_program": "toolpath",
     "read_toolpath": "toolpath",
@@ -56,7 +59,9 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and editors
                          ToolPathError)
     from .machine import Machine, load_machine
     from .prediction import ContourErrors, ReferencePath
-    from .simulation import SimulationResult
+    from .options import LearningOptions, LimitOptions, ToleranceOptions
+    from .planning import ContourTolerance
+    from .simulation import MachineEnsemble, SimulationResult
     from .system import (Compensation, Servo, compensate, contour_errors, load_servo,
                          plot_contour_errors, predict, simulate)
     from .tables import read_trajectory, write_columns

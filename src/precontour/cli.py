@@ -139,7 +139,15 @@ def build_parser() -> argparse.ArgumentParser:
                     "(Zhang, Yuen & Altintas 2013).")
     parser.add_argument("--version", action="version", version=f"precontour {__version__}")
     commands = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND")
+    for add_command in (_add_predict_command, _add_trajectory_command, _add_compensate_command,
+                        _add_simulate_command, _add_demo_command, _add_compare_command,
+                        _add_identify_command, _add_excite_command, _add_export_command,
+                        _add_run_command, _add_machines_command, _add_linuxcnc_config_command):
+        add_command(commands)
+    return parser
 
+
+def _add_predict_command(commands) -> None:
     predict = commands.add_parser(
         "predict", help="predict each axis's tracking error in closed form",
         description="Fit each axis command with a minimum-jerk C3 quintic spline and predict "
@@ -149,10 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
                               "(s, mm, rad), uniformly sampled")
     _add_machine_options(predict)
     _add_fit_options(predict)
-    predict.add_argument("-o", "--output", type=Path, required=True,
-                         help="output file (.csv/.npz/.parquet): t,eX,eY,eZ,eA,eC")
+    _add_output(predict, help="output file (.csv/.npz/.parquet): t,eX,eY,eZ,eA,eC")
     predict.set_defaults(run=run_predict)
 
+
+def _add_trajectory_command(commands) -> None:
     trajectory = commands.add_parser(
         "trajectory", help="tool path in, smooth time-stamped five-axis trajectory out",
         description="Read a tool path (CL-data CSV or APT CL data) or take a built-in path, "
@@ -176,36 +185,34 @@ def build_parser() -> argparse.ArgumentParser:
     trajectory.add_argument("--feed-units", choices=("mm/min", "mm/s"), default="mm/min",
                             help="unit of programmed feeds in CL-data CSV/APT (default mm/min)")
     _add_planning_options(trajectory)
-    trajectory.add_argument("-o", "--output", type=Path, required=True,
-                            help="output file (.csv/.npz/.parquet): "
+    _add_output(trajectory, help="output file (.csv/.npz/.parquet): "
                                  "t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
     trajectory.set_defaults(run=run_trajectory)
 
+
+def _add_compensate_command(commands) -> None:
     compensate = commands.add_parser(
         "compensate", help="pre-compensate axis commands so predicted contour errors cancel",
         description="Predict the contour errors of a trajectory and rewrite its axis commands "
                     "(orientation first, then tool tip) so that they cancel.")
-    compensate.add_argument("trajectory", type=Path,
-                            help="trajectory file with t,X,Y,Z,A,C and the reference "
-                                 "Px,Py,Pz,Oi,Oj,Ok")
+    compensate.add_argument("trajectory", type=Path, help=TRAJECTORY_HELP)
     _add_machine_options(compensate)
     compensate.add_argument("--method", choices=COMPENSATION_METHODS, default="contour",
                             help="contour: contour-error pre-compensation (default); tracking: "
                                  "add the predicted axis tracking errors (the paper's baseline)")
-    compensate.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
-                            help="largest number of compensation passes; stops early when the "
-                                 "predicted contour errors stop improving (default 1)")
-    compensate.add_argument("--learn", type=_nonnegative_int, default=DEFAULT_LEARNING_PASSES,
-                            metavar="N",
-                            help="passes of learning against the virtual machine with friction "
-                                 "(discrete control at the servo period, Stribeck friction, "
-                                 "friction feed-forward) where the linear model misses: stops, "
-                                 "reversals, the final dwell; keeps a command only if it is "
-                                 "nowhere worse there than the uncompensated one, on each of "
-                                 "5 draws of that machine (friction, J, B, encoder) and in "
-                                 "every 0.1 s window; each pass costs 27 runs of the 5 draws; "
-                                 f"0 = off (default {DEFAULT_LEARNING_PASSES}; contour method "
-                                 "only)")
+    _add_iterations_option(compensate, help="largest number of compensation passes; stops early "
+                                            "when the predicted contour errors stop improving "
+                                            "(default 1)")
+    _add_learn_option(compensate, DEFAULT_LEARNING_PASSES,
+                      help="passes of learning against the virtual machine with friction "
+                           "(discrete control at the servo period, Stribeck friction, "
+                           "friction feed-forward) where the linear model misses: stops, "
+                           "reversals, the final dwell; keeps a command only if it is "
+                           "nowhere worse there than the uncompensated one, on each of "
+                           "5 draws of that machine (friction, J, B, encoder) and in "
+                           "every 0.1 s window; each pass costs 27 runs of the 5 draws; "
+                           f"0 = off (default {DEFAULT_LEARNING_PASSES}; contour method "
+                           "only)")
     compensate.add_argument("--ignore-limits", action="store_true",
                             help="compensate and learn without keeping the machine's velocity, "
                                  "acceleration and jerk limits (no local slow-down, unsmoothed "
@@ -220,10 +227,11 @@ def build_parser() -> argparse.ArgumentParser:
                                  "the log had motor currents)")
     _add_min_speed_option(compensate)
     _add_fit_options(compensate, linear=COMPENSATION_TOL_LINEAR, rotary=COMPENSATION_TOL_ROTARY)
-    compensate.add_argument("-o", "--output", type=Path, required=True,
-                            help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
+    _add_output(compensate, help="output file: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok")
     compensate.set_defaults(run=run_compensate)
 
+
+def _add_simulate_command(commands) -> None:
     simulate = commands.add_parser(
         "simulate", help="run axis commands on the time-domain virtual machine",
         description="Simulate the five drives (discrete controllers at the servo period, "
@@ -244,10 +252,11 @@ def build_parser() -> argparse.ArgumentParser:
                           help="true inertia = K x nominal (mis-identified machine; default 1)")
     simulate.add_argument("--damping-scale", type=_nonnegative_float, default=1.0, metavar="K",
                           help="true damping = K x nominal (default 1)")
-    simulate.add_argument("-o", "--output", type=Path, required=True,
-                          help="output file: t,X,Y,Z,A,C (actual) [+ eps_tip,eps_ori]")
+    _add_output(simulate, help="output file: t,X,Y,Z,A,C (actual) [+ eps_tip,eps_ori]")
     simulate.set_defaults(run=run_simulate)
 
+
+def _add_demo_command(commands) -> None:
     demo = commands.add_parser(
         "demo", help="re-run the paper's evaluation on the virtual machine, write a report",
         description="For each built-in path and both PID controllers: predict, contour "
@@ -261,10 +270,11 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--paths", default="paper", metavar="NAMES",
                       help="comma-separated built-in paths out of "
                            f"{','.join(BUILTIN_PATHS)} (default: paper)")
-    demo.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
-                      help="largest number of compensation passes (default 1)")
+    _add_iterations_option(demo)
     demo.set_defaults(run=run_demo)
 
+
+def _add_compare_command(commands) -> None:
     compare = commands.add_parser(
         "compare", help="compare controllers and compensation methods, answer the paper's "
                         "claims with measurements",
@@ -277,16 +287,15 @@ def build_parser() -> argparse.ArgumentParser:
                     "overwritten.")
     source = compare.add_mutually_exclusive_group()
     source.add_argument("trajectory", nargs="?", type=Path,
-                        help="trajectory file with t,X,Y,Z,A,C and the reference "
-                             "Px,Py,Pz,Oi,Oj,Ok, sampled at the servo period")
+                        help=f"{TRAJECTORY_HELP}, sampled at the servo period")
     # no argparse choices: an unknown name then gets the one-line error of the others
     source.add_argument("--builtin", metavar="NAME",
                         help=f"built-in path: {', '.join(BUILTIN_PATHS)} (default: paper)")
     _add_machine_options(compare, controller=None)
     _add_report_option(compare, Path("precontour-compare"))
-    compare.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
-                         help="largest number of contour compensation passes (default 1; the "
-                              "tracking baseline is always the paper's single pass)")
+    _add_iterations_option(compare, help="largest number of contour compensation passes "
+                                         "(default 1; the tracking baseline is always the "
+                                         "paper's single pass)")
     compare.add_argument("--model-error", type=_nonnegative_float, default=20.0, metavar="PCT",
                          help="also run sliding mode and P-PI on plants whose J and B are PCT "
                               "%% above and below the model both controllers use, as on a real "
@@ -294,6 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
                               "20, 0 leaves it out)")
     compare.set_defaults(run=run_compare)
 
+
+def _add_identify_command(commands) -> None:
     ident = commands.add_parser(
         "identify", help="identify the drives' closed loops from a servo log, write a machine file",
         description="Read a servo log (commanded and actual axis positions at the servo rate, "
@@ -306,14 +317,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "LinuxCNC halsampler output, or a halscope log")
     _add_machine_options(ident, controller=None,
                          machine_help="base machine: built-in name or machine TOML file")
-    ident.add_argument("-o", "--output", type=Path, required=True,
-                       help="identified machine file (.toml)")
+    _add_output(ident, help="identified machine file (.toml)")
     ident.add_argument("--name", default="identified",
                        help="name of the identified controller (default: identified)")
     ident.add_argument("--order", default="auto", metavar="auto|N",
                        help="model order per axis: auto (default) or a number")
-    ident.add_argument("--report", type=Path, metavar="DIR",
-                       help="also write figures (Bode, residuals) and index.html to DIR")
+    _add_report_option(ident, help="also write figures (Bode, residuals) and index.html to DIR")
     ident.add_argument("--format", choices=LOG_FORMATS, default=None,
                        help="log format (default: by suffix; text files: halscope if the first "
                             "line says 'Sampling period is', else halsampler)")
@@ -331,14 +340,15 @@ def build_parser() -> argparse.ArgumentParser:
                             "the machine's first linear controller)")
     ident.set_defaults(run=run_identify)
 
+
+def _add_excite_command(commands) -> None:
     excite = commands.add_parser(
         "excite", help="write a safe identification motion to record a servo log with",
         description="Per axis: jerk-limited steps, reversals at three speeds and a multi-sine "
                     "riding on a drift speed; one axis at a time, then all together; within "
                     "a fraction of the machine's velocity, acceleration and jerk limits.")
     _add_machine_options(excite, controller=None)
-    excite.add_argument("-o", "--output", type=Path, required=True,
-                        help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C), or .ngc / .txt "
+    _add_output(excite, help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C), or .ngc / .txt "
                              "(G-code / halstreamer, needs precontour.toolpath.writers)")
     excite.add_argument("--safety", type=_positive_float, default=DEFAULT_SAFETY, metavar="F",
                         help=f"fraction of v_max, a_max, j_max used (default {DEFAULT_SAFETY:g})")
@@ -355,6 +365,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "XYZAC, or XYZBC on a B-C machine)")
     excite.set_defaults(run=run_excite)
 
+
+def _add_export_command(commands) -> None:
     export = commands.add_parser(
         "export", help="write axis commands as a program a CNC runs (G-code, halstreamer)",
         description="Write a command file as machine-axis G-code (G90 G93 inverse-time G1 "
@@ -372,9 +384,11 @@ def build_parser() -> argparse.ArgumentParser:
                          machine_help="built-in machine name or machine TOML file, for the "
                                       "limits and the header")
     _add_tol_option(export)
-    export.add_argument("-o", "--output", type=Path, required=True, help="output file")
+    _add_output(export, help="output file")
     export.set_defaults(run=run_export)
 
+
+def _add_run_command(commands) -> None:
     run = commands.add_parser(
         "run", help="program in, compensated program out",
         description="Read an NC program (G-code of machine axis positions or, in tool "
@@ -390,15 +404,14 @@ def build_parser() -> argparse.ArgumentParser:
                      help="NC program (.nc/.ngc/.gcode/...) or CL data (.csv/.apt)")
     _add_machine_options(run, required=True, controller=REQUIRED)
     _add_planning_options(run)
-    run.add_argument("--iterations", type=_positive_int, default=1, metavar="N",
-                     help="largest number of compensation passes (default 1)")
-    run.add_argument("--learn", type=_nonnegative_int, default=0, metavar="N",
-                     help="passes of learning against the virtual machine with friction "
-                          "(as for compensate), after the compensation within limits: each "
-                          "learning update smoothed, a command kept only if it keeps the "
-                          "limits and is nowhere worse there than the uncompensated one; "
-                          "each pass costs 27 virtual-machine runs; with --tolerance, in "
-                          "every round of the search (default 0 = off)")
+    _add_iterations_option(run)
+    _add_learn_option(run, 0,
+                      help="passes of learning against the virtual machine with friction "
+                           "(as for compensate), after the compensation within limits: each "
+                           "learning update smoothed, a command kept only if it keeps the "
+                           "limits and is nowhere worse there than the uncompensated one; "
+                           "each pass costs 27 virtual-machine runs; with --tolerance, in "
+                           "every round of the search (default 0 = off)")
     _add_min_speed_option(run)
     _add_tol_option(run)
     run.add_argument("--tolerance", type=_contour_tolerance, default=None,
@@ -433,17 +446,17 @@ def build_parser() -> argparse.ArgumentParser:
                           "where friction at a stop makes one exact machine's answer a coin "
                           f"toss; each draw costs two virtual-machine runs; 1 = the machine "
                           f"file's only (default {DEFAULT_CHECK_DRAWS})")
-    run.add_argument("-o", "--output", type=Path, required=True,
-                     help="compensated G-code program (.ngc, .nc, ...)")
+    _add_output(run, help="compensated G-code program (.ngc, .nc, ...)")
     run.add_argument("--stream", type=Path, default=None, metavar="OUT.txt",
                      help="also write a halstreamer file (one line per servo period)")
     run.add_argument("--commands", type=Path, default=None, metavar="OUT.csv",
                      help="also write the compensated commands with the reference and the "
                           "source line of each sample: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok,line")
-    run.add_argument("--report", type=Path, default=None, metavar="DIR",
-                     help="also write figures, the table and an index.html to DIR")
+    _add_report_option(run, help="also write figures, the table and an index.html to DIR")
     run.set_defaults(run=run_run)
 
+
+def _add_machines_command(commands) -> None:
     machines = commands.add_parser(
         "machines", help="list the built-in machines, or print an annotated machine file",
         description="List the built-in machines (--machine NAME) with their kinematics type, "
@@ -456,6 +469,8 @@ def build_parser() -> argparse.ArgumentParser:
                           help=f"kinematics type: {', '.join(kinematics)}")
     machines.set_defaults(run=run_machines)
 
+
+def _add_linuxcnc_config_command(commands) -> None:
     lcnc = commands.add_parser(
         "linuxcnc-config", help="write a LinuxCNC configuration for running run's outputs",
         description="Write a LinuxCNC configuration folder for the machine: INI with the "
@@ -466,10 +481,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "display. An existing folder is replaced only if it holds such a "
                     "configuration.")
     _add_machine_options(lcnc, required=True, controller=None)
-    lcnc.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
-                      help="configuration folder")
+    _add_output(lcnc, metavar="DIR", help="configuration folder")
     lcnc.set_defaults(run=run_linuxcnc_config)
-    return parser
 
 
 def _machines_epilog() -> str:
@@ -510,6 +523,33 @@ def _add_machine_options(parser: argparse.ArgumentParser, *, required: bool = Fa
                             help=f"controller name in the machine file (default: {controller})")
 
 
+def _add_output(parser: argparse.ArgumentParser, *, help: str, metavar: str | None = None
+                ) -> None:
+    """``-o/--output``, which every command that writes has, required."""
+    parser.add_argument("-o", "--output", type=Path, required=True, metavar=metavar, help=help)
+
+
+#: The help of ``--iterations`` where nothing more needs saying.
+ITERATIONS_HELP = "largest number of compensation passes (default 1)"
+
+
+def _add_iterations_option(parser: argparse.ArgumentParser, *,
+                           help: str = ITERATIONS_HELP) -> None:
+    """``--iterations N`` (>= 1, default 1) of compensate, demo, compare and run."""
+    parser.add_argument("--iterations", type=_positive_int, default=1, metavar="N", help=help)
+
+
+def _add_learn_option(parser: argparse.ArgumentParser, default: int, *, help: str) -> None:
+    """``--learn N`` (passes of learning, >= 0) of compensate and run; their defaults differ
+    (run's learning costs a program's worth of virtual-machine runs per pass)."""
+    parser.add_argument("--learn", type=_nonnegative_int, default=default, metavar="N",
+                        help=help)
+
+
+#: The positional trajectory of compensate and compare: the axes and their reference.
+TRAJECTORY_HELP = ("trajectory file with t,X,Y,Z,A,C and the reference Px,Py,Pz,Oi,Oj,Ok")
+
+
 def _add_planning_options(parser: argparse.ArgumentParser) -> None:
     """The options of planning a trajectory from a program, shared by trajectory and run."""
     parser.add_argument("--tcp", action="store_true",
@@ -534,9 +574,14 @@ def _add_planning_options(parser: argparse.ArgumentParser) -> None:
                              f"{default_max_samples()} here)")
 
 
-def _add_report_option(parser: argparse.ArgumentParser, default: Path) -> None:
-    """``--report DIR`` of demo and compare, as for identify and run; ``--out`` is its old
-    spelling, kept."""
+def _add_report_option(parser: argparse.ArgumentParser, default: Path | None = None, *,
+                       help: str | None = None) -> None:
+    """``--report DIR``: the report folder of demo and compare (``default``; ``--out`` is its
+    old spelling, kept), or the optional one of identify and run (no default; ``help`` says
+    what goes in it)."""
+    if default is None:
+        parser.add_argument("--report", type=Path, default=None, metavar="DIR", help=help)
+        return
     parser.add_argument("--report", "--out", dest="report", type=Path, default=default,
                         metavar="DIR",
                         help=f"report folder, created if missing (default: {default}; --out "
@@ -638,8 +683,6 @@ def _positive_int(text: str) -> int:
 
 
 def run_predict(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from .compensation.pieces import predict_program
     from .machine.machine_file import load_machine
     from .tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
@@ -667,7 +710,7 @@ def run_predict(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     print(f"predicted tracking errors of {traj.n_samples} samples "
           f"({traj.duration:.3f} s) on {machine.name}, controller {args.controller}")
-    print(_axis_table(prediction.n_knots, np.abs(e).max(axis=0), machine.axis_names))
+    print(_axis_table(prediction.n_knots, prediction.max_abs_error, machine.axis_names))
     if contour is not None:
         print("predicted contour errors: " + _contour_line(contour))
     print(f"wrote {args.output} in {elapsed:.3f} s")
@@ -715,6 +758,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
 
 
 def run_compensate(args: argparse.Namespace) -> int:
+    from .options import LearningOptions, LimitOptions
     from .system import compensate, load_servo
     from .tables import check_output_table, read_trajectory, trajectory_columns, write_columns
 
@@ -733,11 +777,14 @@ def run_compensate(args: argparse.Namespace) -> int:
               f"orientation max {summary['ori_max_mrad']:.4f} mrad", file=sys.stderr)
 
     with _about(args.trajectory):
-        comp = compensate(servo, traj, method=args.method, limits=not args.ignore_limits,
-                          learn=args.learn, iterations=args.iterations,
-                          min_speed=args.min_speed, learn_controller=args.learn_controller,
-                          tol_linear=args.tol_linear, tol_rotary=args.tol_rotary,
-                          progress=progress, learning_progress=learning_progress)
+        comp = compensate(servo, traj, method=args.method,
+                          limits=LimitOptions(keep=not args.ignore_limits,
+                                              min_speed=args.min_speed),
+                          learn=LearningOptions(passes=args.learn,
+                                                controller=args.learn_controller),
+                          iterations=args.iterations, tol_linear=args.tol_linear,
+                          tol_rotary=args.tol_rotary, progress=progress,
+                          learning_progress=learning_progress)
     if comp.within_limits:
         print(f"within the machine's limits: "
               + (f"slowed in {len(comp.slowdowns)} window(s), +{comp.added_time:.3f} s, down "
@@ -769,13 +816,11 @@ def run_compensate(args: argparse.Namespace) -> int:
 
 
 def run_simulate(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from .machine.machine_file import load_machine
     from .prediction.contour import ReferencePath, contour_errors
     from .simulation.virtual_machine import simulate
     from .tables import (COMMAND_TOLERANCE, check_output_table, check_reference,
-                         read_trajectory, write_columns)
+                         check_same_times, read_trajectory, write_columns)
 
     start = time.perf_counter()
     inputs = input_files(args.commands, args.reference, args.machine)
@@ -792,9 +837,8 @@ def run_simulate(args: argparse.Namespace) -> int:
                         tolerance=COMMAND_TOLERANCE)
     reference_traj = (read_trajectory(args.reference, kinematics=machine.kinematics)
                       if args.reference else commands)
-    if args.reference and not np.array_equal(reference_traj.t, commands.t):
-        raise InputError("reference and command files must have the same time stamps",
-                         source=str(args.reference), field="t")
+    if args.reference:
+        check_same_times(commands, reference_traj, source=str(args.reference))
     with _about(args.commands):
         result = simulate(commands.t, commands.q, machine, args.controller, mode=args.mode,
                           friction=args.friction == "on", ff_friction=args.ff_friction == "on",
@@ -863,8 +907,6 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def run_identify(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from .identification import identify, read_servo_log
     from .machine.machine_file import load_machine, machine_data
     from .tables import write_text
@@ -881,7 +923,8 @@ def run_identify(args: argparse.Namespace) -> int:
     columns = None if args.columns is None else args.columns.split(",")
     log = read_servo_log(args.log, fmt=args.format, columns=columns,
                          period=args.period, default_period=base.servo_period,
-                         angle_scale=np.pi / 180 if args.angles == "deg" else 1.0)
+                         angle_scale=math.pi / 180 if args.angles == "deg" else 1.0,
+                         axis_names=base.axis_names)
     result = identify(log, base, data, name=args.name, order=args.order,
                       base_controller=args.base_controller)
     with outputs:
@@ -904,12 +947,11 @@ def run_identify(args: argparse.Namespace) -> int:
 
 def format_identification_table(result) -> str:
     """The printed per-axis table of an identification."""
-    import numpy as np
-
     lines = ["axis  order  fit % max|e|  held-out %   bandwidth Hz (base)  slowest pole rad/s (base)"]
     for row in result.summary_rows():
-        slow = row["poles"][np.argmax(row["poles"].real)]
-        base_slow = row["base_poles"][np.argmax(row["base_poles"].real)]
+        # the slowest pole: the first of largest real part
+        slow = max(row["poles"], key=lambda pole: pole.real)
+        base_slow = max(row["base_poles"], key=lambda pole: pole.real)
         if row["identified"]:
             head = f"{row['axis']:>4}  {row['order']:5d}  {row['fit_pct']:12.2f}  {row['holdout_pct']:10.2f}"
         else:
@@ -971,6 +1013,8 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_run(args: argparse.Namespace) -> int:
+    from .options import LimitOptions, ToleranceOptions
+    from .planning import ContourTolerance
     from .reports.progress import ProgressLine
     from .workflow import RunOutputs, run_program, write_run_outputs
 
@@ -982,6 +1026,10 @@ def run_run(args: argparse.Namespace) -> int:
     outputs = RunOutputs(program=args.output, stream=args.stream, commands=args.commands,
                          report=args.report, report_files=report_files)
     inputs = [args.program] + ([args.machine] if Path(args.machine).exists() else [])
+    feed = ToleranceOptions(None if args.tolerance is None
+                            else ContourTolerance.in_um(*args.tolerance),
+                            feed_scale_max=args.feed_scale_max,
+                            feed_scale_min=args.feed_scale_min, write_anyway=args.write_anyway)
     progress = ProgressLine(sys.stderr)
     try:
         result = run_program(args.program, outputs, machine=args.machine,
@@ -989,11 +1037,8 @@ def run_run(args: argparse.Namespace) -> int:
                              corner_tolerance=args.corner_tol, max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
-                             min_speed=args.min_speed,
-                             contour_tolerance=_tolerance_of(args.tolerance),
-                             feed_scale_max=args.feed_scale_max,
-                             feed_scale_min=args.feed_scale_min,
-                             write_anyway=args.write_anyway, draws=args.draws)
+                             limits=LimitOptions(min_speed=args.min_speed),
+                             contour_tolerance=feed, draws=args.draws)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):
@@ -1012,17 +1057,6 @@ def run_run(args: argparse.Namespace) -> int:
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
     return 0
-
-
-def _tolerance_of(value):
-    """The parsed --tolerance (um, mrad) as the library's tolerance (mm, rad), or None."""
-    if value is None:
-        return None
-    from .planning import ContourTolerance
-
-    tip, orientation = value
-    return ContourTolerance(tip=1e-3 * tip,
-                            orientation=None if orientation is None else 1e-3 * orientation)
 
 
 def run_machines(args: argparse.Namespace) -> int:

@@ -9,6 +9,7 @@ take their system first, and its strategy is a keyword, not another function:
     traj = generate_trajectory(builtin_path("paper"), servo.machine)
     predicted = predict(servo, traj)                    # closed form, any length
     comp = compensate(servo, traj, learn=4)             # within the limits unless limits=False
+    # or learn=LearningOptions(passes=4, controller=...), limits=LimitOptions(min_speed=0.5)
     sim = simulate(servo, comp.commands)                # realism="realistic" or "exact"
     errors = contour_errors(servo, comp.reference, sim)
 
@@ -20,14 +21,15 @@ call stay where they are, for the stages themselves and the command line.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from .defaults import DEFAULT_MIN_SPEED
 from .errors import InputError
 from .machine import Machine, load_machine
+from .options import (LearningOptions, LimitOptions, learning_options, limit_options,
+                      with_former_spellings)
 from .prediction.contour import ContourErrors, ReferencePath
 from .prediction.contour import contour_errors as _contour_errors
 from .trajectory.limits import AxisLimits
@@ -165,28 +167,33 @@ def predict(servo: Servo, trajectory: Trajectory):
 
 
 def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
-               limits: bool = True, learn: int = 0, iterations: int = 1,
-               min_speed: float = DEFAULT_MIN_SPEED, ensemble=None,
-               learn_controller: str | None = None, tol_linear: float | None = None,
-               tol_rotary: float | None = None, progress=None,
-               learning_progress=None) -> Compensation:
+               limits: bool | LimitOptions = True, learn: int | LearningOptions = 0,
+               iterations: int = 1, tol_linear: float | None = None,
+               tol_rotary: float | None = None, progress=None, learning_progress=None,
+               min_speed: float | None = None, ensemble=None,
+               learn_controller: str | None = None) -> Compensation:
     """Pre-compensated commands for ``trajectory`` (which must carry its reference).
 
     ``method``: ``"contour"`` (the paper's, spec section 6) or ``"tracking"`` (each axis's
-    own predicted tracking error added). ``limits``: keep the machine's axis limits, slowing
-    the motion down locally (never below ``min_speed`` of its speed) and compensating again
-    where needed, as ``precontour run`` and ``compensate`` do; ``False`` gives the
-    unconstrained commands, which may break them. ``learn``: passes of learning (contour
-    method) against the realistic virtual machine running ``learn_controller`` (default:
-    :func:`learning_controller`), every decision on the worst of ``ensemble``'s draws (default
-    :class:`~precontour.simulation.ensemble.MachineEnsemble`), the command kept nowhere worse
-    than uncompensated (within the limits, segment by segment above
-    :data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples). Learning is skipped,
-    with a one-line notice, where it cannot run: a trajectory not sampled at the servo period,
-    or, with ``limits=False``, one longer than that (compensated in pieces).
-    ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (defaults: the compensation's).
-    ``progress(pass, summary)``: each unconstrained pass; ``learning_progress(label,
-    summary)``: each command learning tries."""
+    own predicted tracking error added). ``limits`` (:class:`~precontour.options.
+    LimitOptions`, or ``True`` / ``False`` for its ``keep``): keep the machine's axis
+    limits, slowing the motion down locally (never below its ``min_speed`` of the speed)
+    and compensating again where needed, as ``precontour run`` and ``compensate`` do;
+    ``False`` gives the unconstrained commands, which may break them. ``learn``
+    (:class:`~precontour.options.LearningOptions`, or a number of passes): learning
+    (contour method) against the realistic virtual machine running the options'
+    ``controller`` (default: :func:`learning_controller`), every decision on the worst of
+    its ensemble's draws (default :class:`~precontour.simulation.ensemble.MachineEnsemble`),
+    the command kept nowhere worse than uncompensated (within the limits, segment by segment
+    above :data:`~precontour.compensation.pieces.AT_ONCE_SAMPLES` samples). Learning is
+    skipped, with a one-line notice, where it cannot run: a trajectory not sampled at the
+    servo period, or, with the limits not kept, one longer than that (compensated in
+    pieces). ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (defaults: the
+    compensation's). ``progress(pass, summary)``: each pass of the (first) compensation;
+    ``learning_progress(label, summary)``: each command learning tries. ``min_speed``,
+    ``ensemble``, ``learn_controller``: the former spellings of ``LimitOptions.min_speed``,
+    ``LearningOptions.ensemble`` and ``LearningOptions.controller``, kept (beside a plain
+    ``limits`` / ``learn``)."""
     from .errors import notice
     from .machine.controllers import is_closed_loop
     from .workflow import can_learn
@@ -194,16 +201,20 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
     if method not in METHODS:
         raise InputError(f"unknown compensation method {method!r}; choose one of "
                          f"{', '.join(METHODS)}", field="method")
-    if learn < 0 or iterations < 1:
-        raise InputError(f"learn must be >= 0 and iterations >= 1, got {learn} and "
-                         f"{iterations}", field="learn" if learn < 0 else "iterations")
+    learning = with_former_spellings(learn, LearningOptions, learning_options, "learn",
+                                     controller=learn_controller, ensemble=ensemble)
+    limit = with_former_spellings(limits, LimitOptions, limit_options, "limits",
+                                  min_speed=min_speed)
+    if iterations < 1:
+        raise InputError(f"iterations must be >= 1, got {iterations}", field="--iterations")
     if not trajectory.has_reference:
         raise InputError("compensation needs the reference tool path columns "
                          "Px,Py,Pz,Oi,Oj,Ok (write the trajectory with 'precontour trajectory')",
                          field="Px")
-    learner = learning_controller(servo, learn_controller)
+    learner = learning_controller(servo, learning.controller)
+    learn = learning.passes
     if learn and method == "contour":
-        if not can_learn(trajectory, servo.machine, whole=not limits):
+        if not can_learn(trajectory, servo.machine, whole=not limit.keep):
             learn = 0
         elif is_closed_loop(learner):
             notice(f"learning against controller {learner.name!r}, a transfer function "
@@ -211,16 +222,16 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                    "run, on the machine file's drives)")
     else:
         learn = 0
-    fits = dict(tol_linear=tol_linear, tol_rotary=tol_rotary)
-    if limits:
+    learning = replace(learning, passes=learn, controller=learner.name)
+    fits = dict(method=method, iterations=iterations, tol_linear=tol_linear,
+                tol_rotary=tol_rotary)
+    if limit.keep:
         from .workflow import compensate_keeping_limits
 
         limited = compensate_keeping_limits(trajectory, servo.machine, servo.controller,
-                                            learn=learn, learn_controller=learner.name,
-                                            ensemble=ensemble,
-                                            learning_progress=learning_progress,
-                                            method=method, iterations=iterations,
-                                            min_speed=min_speed, **fits)
+                                            learn=learning, limits=limit,
+                                            pass_progress=progress,
+                                            learning_progress=learning_progress, **fits)
         result = limited.result
         return Compensation(commands=result.trajectory, reference=limited.reference,
                             before=result.before, after=result.after,
@@ -229,15 +240,15 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                             left_out=limited.uncompensated, learning_controller=learner)
     from .compensation.pieces import compensate_program
 
-    learning = {}
+    machine_model = {}
     if learn:
         from .simulation.ensemble import ensemble_actual
 
-        learning = dict(machine_actual=ensemble_actual(trajectory.t, servo.machine, learner,
-                                                       ensemble),
-                        learning_passes=learn, learning_progress=learning_progress)
-    result = compensate_program(trajectory, servo.kinematics, servo.models, method=method,
-                                iterations=iterations, progress=progress, **fits, **learning)
+        machine_model = dict(machine_actual=ensemble_actual(trajectory.t, servo.machine,
+                                                            learner, learning.ensemble),
+                             learning_passes=learn, learning_progress=learning_progress)
+    result = compensate_program(trajectory, servo.kinematics, servo.models, progress=progress,
+                                **fits, **machine_model)
     return Compensation(commands=result.trajectory, reference=trajectory, before=result.before,
                         after=result.after, passes=result.iterations, slowdowns=(),
                         learning=result.learning, within_limits=False,
@@ -259,11 +270,14 @@ def learning_controller(servo: Servo, name: str | None = None):
     return controller
 
 
-def simulate(servo: Servo, commands, *, realism: str = "realistic", **scatter):
+def simulate(servo: Servo, commands, *, realism: str = "realistic",
+             friction_scale=1.0, inertia_scale=1.0, damping_scale=1.0,
+             encoder_resolution=None, encoder_offset=None, encoder_noise=None):
     """The drives of ``servo`` following ``commands`` (a Trajectory, a :class:`Compensation`
     or an (N, 5) array sampled at the servo period) on the virtual machine; ``realism``: a
-    key of :data:`REALISM`. ``scatter``: a true machine's departures from the machine file
-    (``friction_scale``, ``inertia_scale``, ``damping_scale``, the encoder's). Returns a
+    key of :data:`REALISM`. The rest: a true machine's departures from the machine file
+    (``friction_scale``, ``inertia_scale``, ``damping_scale``, the encoder's; as for
+    :func:`precontour.simulation.simulate`). Returns a
     :class:`~precontour.simulation.SimulationResult`."""
     from .simulation.virtual_machine import simulate as _simulate
 
@@ -271,7 +285,10 @@ def simulate(servo: Servo, commands, *, realism: str = "realistic", **scatter):
         raise InputError(f"unknown realism {realism!r}; choose one of {', '.join(REALISM)}",
                          field="realism")
     t, q = _time_and_commands(servo, commands)
-    return _simulate(t, q, servo.machine, servo.controller, **REALISM[realism], **scatter)
+    return _simulate(t, q, servo.machine, servo.controller, **REALISM[realism],
+                     friction_scale=friction_scale, inertia_scale=inertia_scale,
+                     damping_scale=damping_scale, encoder_resolution=encoder_resolution,
+                     encoder_offset=encoder_offset, encoder_noise=encoder_noise)
 
 
 def plot_contour_errors(servo: Servo, reference, actuals: dict, *, axes=None):

@@ -182,6 +182,15 @@ def _axis_columns(columns: dict, axis_names: Sequence[str] | None, source: str
     return tuple(names)
 
 
+def check_same_times(commands: Trajectory, reference: Trajectory, *,
+                     source: str | None = None) -> None:
+    """Refuse a ``reference`` (from the file ``source``) whose time stamps are not those of
+    ``commands``: contour errors compare the two sample by sample."""
+    if not np.array_equal(reference.t, commands.t):
+        raise InputError("reference and command files must have the same time stamps",
+                         source=source, field="t")
+
+
 def check_reference(traj: Trajectory, kinematics, *, source: str | None = None,
                     tolerance: tuple[float, float] = REFERENCE_TOLERANCE) -> None:
     """Raise :class:`InputError` naming the first row where the reference tool tip or

@@ -25,13 +25,15 @@ import numpy as np
 from .compensation.blocks import Judgement
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.segments import learn_by_segments
-from .compensation.within_limits import (MIN_SPEED, LimitedCompensation,
+from .compensation.within_limits import (LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
-from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
-                       DEFAULT_FEED_SCALE_MIN, EXPORT_FORMATS, default_max_samples)
+from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
+                       DEFAULT_FEED, EXPORT_FORMATS, default_max_samples)
 from .errors import InputError, MachineLimitError, ToleranceError, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
+from .options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
+                      limit_options, with_former_spellings)
 from .planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
 from .prediction.contour import ContourErrors
 from .simulation.ensemble import MachineEnsemble, ensemble_actual
@@ -429,40 +431,83 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
                 max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
-                workers: int | None = 1, learn: int = 0,
+                workers: int | None = 1, learn: int | LearningOptions = 0,
                 ensemble: MachineEnsemble | None = None,
-                min_speed: float = MIN_SPEED,
-                contour_tolerance: ContourTolerance | None = None,
-                feed_scale_max: float = 1.0,
-                feed_scale_min: float = DEFAULT_FEED_SCALE_MIN,
-                write_anyway: bool = False,
+                limits: LimitOptions = LimitOptions(),
+                contour_tolerance: ToleranceOptions | ContourTolerance | None = None,
+                min_speed: float | None = None, feed_scale_max: float | None = None,
+                feed_scale_min: float | None = None,
+                write_anyway: bool | None = None,
                 draws: int = DEFAULT_CHECK_DRAWS) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
-    caller that keeps the result in memory). ``machine`` (a built-in name or a machine file) and ``controller`` have no
-    default: a program compensated for another machine than the user's is wrong silently.
-    ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``: planning, as
-    :func:`load_program_trajectory`. ``learn``: passes of learning against the realistic
-    virtual machine after the compensation within limits (:func:`~.compensation.within_limits.learn_within_limits`;
-    0: none; skipped, with a notice, for a program not sampled at the servo period; segment
-    by segment above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
-    draws of ``ensemble`` (default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
-    result nowhere worse than uncompensated on them, block by block (each source line;
-    :func:`learn_on_ensemble`). ``min_speed``: the floor of the local slow-downs that keep
-    the limits, a fraction of the planned speed (below it the planned commands are kept).
-    ``contour_tolerance``: find the fastest motion whose compensated contour errors keep it on
-    the realistic virtual machine (each search's result checked on the draws of ``ensemble``,
-    default :class:`~.simulation.ensemble.MachineEnsemble` ()), between ``feed_scale_min`` and
-    ``feed_scale_max`` times the programmed feed, and the uncompensated baseline the same way
-    (:func:`~.planning.tolerance.feed_within_tolerance`; ``RunResult.feed``); where the
-    compensated one is not met even at the lowest feed, raise
+    caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
+    and ``controller`` have no default: a program compensated for another machine than the
+    user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``:
+    planning, as :func:`load_program_trajectory`. ``tolerance``: the G-code decimation
+    tolerance per axis (:func:`~.toolpath.writers.gcode_tolerances`).
+
+    ``learn``: passes of learning (a number, or :class:`~.options.LearningOptions`) against
+    the realistic virtual machine after the compensation within limits
+    (:func:`~.compensation.within_limits.learn_within_limits`; 0: none; skipped, with a
+    notice, for a program not sampled at the servo period; segment by segment above
+    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
+    draws of the ensemble (the options', else ``ensemble``, default
+    :class:`~.simulation.ensemble.MachineEnsemble` ()) and the result nowhere worse than
+    uncompensated on them, block by block (each source line; :func:`learn_on_ensemble`).
+    ``limits``: :class:`~.options.LimitOptions`, whose ``min_speed`` is the floor of the
+    local slow-downs that keep the limits, a fraction of the planned speed (below it the
+    planned commands are kept); ``run`` always keeps them.
+    ``contour_tolerance``: :class:`~.options.ToleranceOptions` (or its ``tolerance``
+    alone): find the fastest motion whose compensated contour errors keep it on the
+    realistic virtual machine (each search's result checked on the draws of ``ensemble``,
+    default :class:`~.simulation.ensemble.MachineEnsemble` ()), between its
+    ``feed_scale_min`` and ``feed_scale_max`` times the programmed feed, and the
+    uncompensated baseline the same way (:func:`~.planning.tolerance.feed_within_tolerance`;
+    ``RunResult.feed``); where the compensated one is not met even at the lowest feed, raise
     :class:`~precontour.errors.ToleranceError` naming the place unless ``write_anyway``.
+    ``min_speed``, ``feed_scale_max``, ``feed_scale_min``, ``write_anyway``: the former
+    spellings of those options' fields, kept (with an options object, give them there).
+    ``draws``: the machines both commands are checked on, the machine file's and
+    ``draws - 1`` draws of the ensemble (:func:`check_on_draws`; ``RunResult.draws``, None
+    for 1).
     ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
     when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
     samples; more than 1 needs the calling script's own code under
     ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
     Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
     machine's limits cannot be kept."""
+    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 1:
+        raise InputError(f"must be a whole number >= 1, got {draws!r}", field="--draws")
+    learning = learning_options(learn)
+    limits = with_former_spellings(limits, LimitOptions, limit_options, "limits",
+                                   min_speed=min_speed)
+    if not limits.keep:
+        raise InputError("run keeps the machine's limits (it writes a program a machine "
+                         "runs)", field="--ignore-limits")
+    contour_tolerance = with_former_spellings(
+        contour_tolerance, ToleranceOptions, ToleranceOptions, "contour_tolerance",
+        feed_scale_max=feed_scale_max, feed_scale_min=feed_scale_min,
+        write_anyway=write_anyway)
+    return _run_program(program, outputs, machine=machine, controller=controller, tcp=tcp,
+                        dwell=dwell, corner_tolerance=corner_tolerance,
+                        max_samples=max_samples, iterations=iterations, tolerance=tolerance,
+                        progress=progress, workers=workers, learning=learning,
+                        ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
+                        draws=draws)
+
+
+def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
+                 max_samples, iterations, tolerance, progress, workers,
+                 learning: LearningOptions, ensemble, limits: LimitOptions,
+                 feed_options: ToleranceOptions, draws: int) -> RunResult:
+    learn = learning.passes
+    learning_ensemble = ensemble if learning.ensemble is None else learning.ensemble
+    learner = controller if learning.controller is None else learning.controller
+    min_speed = limits.min_speed
+    contour_tolerance = feed_options.tolerance
+    feed_scale_max, feed_scale_min = feed_options.feed_scale_max, feed_options.feed_scale_min
+    write_anyway = feed_options.write_anyway
     timings: dict[str, float] = {}
     total = 4
 
@@ -476,7 +521,6 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         # checked before computing, so that a bad output location is said at once
         check_run_outputs(outputs, inputs)
     tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
-    _check_feed_options(contour_tolerance, feed_scale_max, feed_scale_min)
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
@@ -492,15 +536,15 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     timings["plan"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    limits = AxisLimits.from_machine(machine_obj)
+    axis_limits = AxisLimits.from_machine(machine_obj)
 
     def round_progress(round_: int, message: str) -> None:
         step(1, f"{message}, round {round_}")
 
     feed = None
     if contour_tolerance is None:
-        limited = compensate_within_limits(planned, machine_obj.kinematics, models, limits,
-                                           line=line, iterations=iterations,
+        limited = compensate_within_limits(planned, machine_obj.kinematics, models,
+                                           axis_limits, line=line, iterations=iterations,
                                            progress=round_progress, min_speed=min_speed)
         timings["compensate"] = time.perf_counter() - start
     else:
@@ -513,20 +557,20 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
             line = getattr(planned, "line", None)
         refine = None
         if learn and can_learn(planned, machine_obj):
-            the_ensemble = MachineEnsemble() if ensemble is None else ensemble
+            the_ensemble = MachineEnsemble() if learning_ensemble is None else learning_ensemble
 
             def refine(limited):
                 # a timing slowed beyond the learning's size is compensated without it
                 if not can_learn(limited.reference, machine_obj):
                     return limited
-                return learn_on_ensemble(limited, machine_obj, controller, models, limits,
+                return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
                                          learn, ensemble=the_ensemble)
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
             refine=refine, exempt_lines=_rapid_lines(source),
             feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
-            progress=lambda message: step(1, message), models=models, limits=limits,
+            progress=lambda message: step(1, message), models=models, limits=axis_limits,
             limits_min_speed=min_speed, iterations=iterations,
             where="line" if toolpath_format(program) == "gcode" else "row")
         timings["feed within tolerance"] = time.perf_counter() - start
@@ -540,8 +584,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         if can_learn(limited.reference, machine_obj):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
-            limited = learn_on_ensemble(limited, machine_obj, controller, models, limits,
-                                        learn, ensemble=ensemble)
+            limited = learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
+                                        learn, ensemble=learning_ensemble)
             timings["learn"] = time.perf_counter() - start
 
     step(2, f"virtual machine, uncompensated and compensated "
@@ -557,7 +601,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         start = time.perf_counter()
         checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
                                  controller, simulated, line=limited.line,
-                                 ensemble=replace(ensemble or MachineEnsemble(), draws=draws))
+                                 ensemble=replace(learning_ensemble or MachineEnsemble(),
+                                                  draws=draws))
         timings["virtual machine (draws)"] = time.perf_counter() - start
 
     step(3, "write G-code")
@@ -614,23 +659,6 @@ def can_learn(reference: Trajectory, machine_obj: Machine, *, whole: bool = Fals
     return True
 
 
-def _check_feed_options(contour_tolerance, feed_scale_max: float,
-                        feed_scale_min: float) -> None:
-    """Refuse feed-search options that do not go together, before any computing."""
-    for name, value in (("--feed-scale-max", feed_scale_max),
-                        ("--feed-scale-min", feed_scale_min)):
-        if not (np.isfinite(value) and value > 0):
-            raise InputError(f"must be positive and finite, got {value!r}", field=name)
-    if contour_tolerance is None:
-        if feed_scale_max != 1.0 or feed_scale_min != DEFAULT_FEED_SCALE_MIN:
-            raise InputError("--feed-scale-max and --feed-scale-min apply with --tolerance "
-                             "only", field="--feed-scale-max")
-        return
-    if feed_scale_min > feed_scale_max:
-        raise InputError(f"the lowest feed scale {feed_scale_min:g} is above the highest "
-                         f"{feed_scale_max:g}", field="--feed-scale-min")
-
-
 def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
     """One line: where the compensated search misses the tolerance, by how much."""
     misses = feed.compensated.misses
@@ -646,8 +674,8 @@ def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
 
 def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
                       models, limits: AxisLimits, passes: int, *,
-                      ensemble: MachineEnsemble | None = None, progress=None,
-                      **learning) -> LimitedCompensation:
+                      ensemble: MachineEnsemble | None = None,
+                      progress=None) -> LimitedCompensation:
     """``limited`` improved by ``passes`` passes of learning within ``limits``
     (:func:`~.compensation.within_limits.learn_within_limits`) against the draws of
     ``ensemble`` of the realistic virtual machine running ``controller``
@@ -659,33 +687,42 @@ def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, contro
         return learn_by_segments(
             limited, machine_obj.kinematics, models, limits,
             lambda t: ensemble_actual(t, machine_obj, controller, ensemble), passes,
-            progress=progress, **learning)
+            progress=progress)
     actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
     return learn_within_limits(limited, machine_obj.kinematics, models, limits, actual, passes,
-                               progress=progress, **learning)
+                               progress=progress)
 
 
 def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller: str, *,
-                              learn: int = 0, learn_controller: str | None = None,
-                              ensemble: MachineEnsemble | None = None, progress=None,
-                              learning_progress=None, **options) -> LimitedCompensation:
+                              learn: int | LearningOptions = 0,
+                              limits: LimitOptions = LimitOptions(), method: str = "contour",
+                              iterations: int = 1, tol_linear: float | None = None,
+                              tol_rotary: float | None = None, progress=None,
+                              pass_progress=None, learning_progress=None
+                              ) -> LimitedCompensation:
     """What ``compensate`` does by default, as ``run`` does: compensate ``traj`` within the
-    machine's axis limits (slowing it down locally and compensating again where needed;
-    :func:`~.compensation.within_limits.compensate_within_limits` with ``options``), then, for
-    ``learn`` > 0, learn within them against the ensemble of the realistic virtual machine
-    running ``learn_controller`` (default ``controller``; :func:`learn_on_ensemble`). The
-    commands keep the limits, so ``export`` takes them. ``progress(round, message)`` reports
-    the compensation rounds, ``learning_progress(label, summary)`` each command learning tries.
-    """
+    machine's axis limits (slowing it down locally, never below ``limits.min_speed``, and
+    compensating again where needed; :func:`~.compensation.within_limits.
+    compensate_within_limits` with ``method``, ``iterations``, ``tol_linear``,
+    ``tol_rotary``), then, for ``learn`` passes (a number or :class:`~.options.
+    LearningOptions`), learn within them against the ensemble of the realistic virtual
+    machine running the learning controller (default ``controller``;
+    :func:`learn_on_ensemble`). The commands keep the limits, so ``export`` takes them.
+    ``progress(round, message)`` reports the compensation rounds, ``pass_progress(pass,
+    summary)`` the first round's passes, ``learning_progress(label, summary)`` each command
+    learning tries."""
+    learning = learning_options(learn)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
-    limits = AxisLimits.from_machine(machine_obj)
-    limited = compensate_within_limits(traj, machine_obj.kinematics, models, limits,
+    axis_limits = AxisLimits.from_machine(machine_obj)
+    limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
                                        line=getattr(traj, "line", None), progress=progress,
-                                       **options)
-    if learn:
-        limited = learn_on_ensemble(limited, machine_obj, learn_controller or controller,
-                                    models, limits, learn, ensemble=ensemble,
-                                    progress=learning_progress)
+                                       min_speed=limits.min_speed, method=method,
+                                       iterations=iterations, tol_linear=tol_linear,
+                                       tol_rotary=tol_rotary, pass_progress=pass_progress)
+    if learning.passes:
+        limited = learn_on_ensemble(limited, machine_obj, learning.controller or controller,
+                                    models, axis_limits, learning.passes,
+                                    ensemble=learning.ensemble, progress=learning_progress)
     return limited
 
 

@@ -202,3 +202,57 @@ def test_zero_currents_are_refused_naming_the_column(tmp_path):
     with pytest.raises(InputError, match=r"log.csv, field 'I_Y': the motor current of Y is zero "
                                          r"on every row \(not recorded\?\)"):
         read_servo_log(path)
+
+
+def _renamed(cols, old, new):
+    """The columns with axis letter ``old`` spelled ``new`` (X_act, I_X too)."""
+    out = {}
+    for name, values in cols.items():
+        for form in ("{}", "{}_act", "I_{}"):
+            if name == form.format(old):
+                name = form.format(new)
+                break
+        out[name] = values
+    return out
+
+
+@pytest.mark.parametrize("fmt", ["table", "halsampler"])
+def test_a_b_c_machines_log_has_b_columns_and_still_reads_the_old_a(tmp_path, fmt, caplog):
+    """On a B-C machine the tilt axis's columns are B, B_act, I_B (the machine's letters),
+    read into the same slot as an X-Y-Z-A-C log's A: the same numbers either way. The former
+    spelling, A holding B, is read too, with one notice."""
+    from precontour.machine import load_machine
+
+    letters = load_machine("linuxcnc-xyzbc-trt").axis_names
+    assert tuple(letters) == ("X", "Y", "Z", "B", "C")
+    cols = _columns(currents=True)
+    reference = read_servo_log(write_columns(tmp_path / "ac.csv", cols))
+    for name, spelled in (("b", _renamed(cols, "A", "B")), ("a", cols)):
+        if fmt == "table":
+            path = write_columns(tmp_path / f"{name}.csv", spelled)
+            log = read_servo_log(path, axis_names=letters)
+        else:
+            path = tmp_path / f"{name}.txt"
+            names = list(spelled)
+            path.write_text("\n".join(" ".join(repr(float(spelled[c][k])) for c in names)
+                                      for k in range(N)) + "\n")
+            log = read_servo_log(path, fmt="halsampler", columns=names, axis_names=letters)
+        for a in AXES:
+            np.testing.assert_array_equal(log.command[a], reference.command[a])
+            np.testing.assert_array_equal(log.actual[a], reference.actual[a])
+            np.testing.assert_array_equal(log.current[a], reference.current[a])
+        noted = "column A read as the B axis of this B-C machine" in caplog.text
+        assert noted == (name == "a"), name
+        caplog.clear()
+
+
+def test_a_b_c_machines_messages_name_b(tmp_path):
+    letters = ("X", "Y", "Z", "B", "C")
+    cols = {k: v for k, v in _renamed(_columns(), "A", "B").items()
+            if k in ("t", "X", "X_act", "B")}
+    with pytest.raises(InputError, match=r"field 'B_act'.*only one of B, B_act"):
+        read_servo_log(write_columns(tmp_path / "a.csv", cols), axis_names=letters)
+    both = _renamed(_columns(), "A", "B")
+    both.update(A=both["B"], A_act=both["B_act"])
+    with pytest.raises(InputError, match="both column A and the machine's B"):
+        read_servo_log(write_columns(tmp_path / "b.csv", both), axis_names=letters)

@@ -23,6 +23,7 @@ from math import ceil, log
 
 import numpy as np
 
+from ..defaults import DEFAULT_LEARNING_PASSES
 from ..machine.drives import LinearErrorModel
 from ..prediction.contour import (DEFAULT_WINDOW, MAX_WINDOW_FACTOR, ContourErrors,
                                   ReferencePath)
@@ -129,6 +130,11 @@ class ProgramPrediction:
     n_knots: tuple[int, ...]
     pieces: int
 
+    @property
+    def max_abs_error(self) -> np.ndarray:
+        """max |e| of each axis over the program, shape (5,)."""
+        return np.abs(self.e).max(axis=0)
+
 
 def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorModel, ...],
                    kinematics, *, tol_linear: float | None = None,
@@ -200,18 +206,23 @@ def contour_errors_program(reference: Trajectory, q_act: np.ndarray, kinematics,
 
 
 def compensate_pieces(read, n_samples: int, ts: float, kinematics,
-                      models: tuple[LinearErrorModel, ...], *,
-                      piece_samples: int = PIECE_SAMPLES, **options):
+                      models: tuple[LinearErrorModel, ...], *, method: str = "contour",
+                      iterations: int = 1, tol_linear: float | None = None,
+                      tol_rotary: float | None = None, min_passes: int = 0,
+                      hold_idle: bool = True, piece_samples: int = PIECE_SAMPLES):
     """:func:`compensate` a program given only ``read(start, stop) -> Trajectory`` (with its
     reference), piece by piece; yields ``(piece, result)`` where ``result`` is the piece's
     :class:`CompensationResult` cut to its kept samples. Each piece keeps its own best
-    number of passes. Memory is bounded by the piece size."""
-    options.pop("progress", None)
-    chained = 2 * options.get("iterations", 1) + 1
+    number of passes. Memory is bounded by the piece size. The options are
+    :func:`compensate`'s; learning against a machine model is not among them (it runs the
+    whole trajectory at once)."""
+    chained = 2 * iterations + 1
     pieces = plan_pieces(n_samples, overlap_samples(models, ts, chained),
                          lambda a, b: read(a, b).q, piece_samples, ts)
     for piece in pieces:
-        result = compensate(read(piece.start, piece.stop), kinematics, models, **options)
+        result = compensate(read(piece.start, piece.stop), kinematics, models, method=method,
+                            iterations=iterations, tol_linear=tol_linear,
+                            tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle)
         keep = slice(piece.keep_start - piece.start, piece.keep_stop - piece.start)
         yield piece, CompensationResult(
             trajectory=_slice(result.trajectory, keep.start, keep.stop),
@@ -220,31 +231,46 @@ def compensate_pieces(read, n_samples: int, ts: float, kinematics,
 
 
 def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
-                       piece_samples: int = PIECE_SAMPLES,
-                       at_once_samples: int = AT_ONCE_SAMPLES, **options) -> CompensationResult:
+                       method: str = "contour", iterations: int = 1,
+                       tol_linear: float | None = None, tol_rotary: float | None = None,
+                       min_passes: int = 0, hold_idle: bool = True, progress=None,
+                       machine_actual=None, learning_passes: int = DEFAULT_LEARNING_PASSES,
+                       learning_progress=None, piece_samples: int = PIECE_SAMPLES,
+                       at_once_samples: int = AT_ONCE_SAMPLES) -> CompensationResult:
     """:func:`compensate` of a whole program, at once up to ``at_once_samples`` samples, in
-    pieces above (``options`` as for :func:`compensate`).
+    pieces above (the options as for :func:`compensate`).
 
     In pieces, each piece keeps its own best number of passes (``iterations`` is the largest
-    of them), ``history`` holds the joined before and after, and ``progress`` is not called.
+    of them), ``history`` holds the joined before and after, and ``progress(passes,
+    summary)`` is called once, with that largest number and the joined prediction after;
+    learning (``machine_actual``) runs the whole trajectory at once, and is refused.
     """
     n = traj.n_samples
+    fits = dict(method=method, iterations=iterations, tol_linear=tol_linear,
+                tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle)
     if n <= at_once_samples:
-        return compensate(traj, kinematics, models, **options)
+        return compensate(traj, kinematics, models, progress=progress,
+                          machine_actual=machine_actual, learning_passes=learning_passes,
+                          learning_progress=learning_progress, **fits)
+    if machine_actual is not None:
+        raise ValueError(f"learning runs the whole trajectory at once: {n} samples are more "
+                         f"than {at_once_samples}")
     q = np.empty_like(traj.q)
     before, after, passes = [], [], 0
     for piece, result in compensate_pieces(lambda a, b: _slice(traj, a, b), n, traj.ts,
                                            kinematics, models, piece_samples=piece_samples,
-                                           **options):
+                                           **fits):
         q[piece.keep_start:piece.keep_stop] = result.trajectory.q
         before.append(result.before)
         after.append(result.after)
         passes = max(passes, result.iterations)
     before_all, after_all = _join(before), _join(after)
+    if progress is not None:
+        progress(passes, after_all.summary())
     return CompensationResult(trajectory=traj.with_axes(q), before=before_all,
                               after=after_all, iterations=passes,
                               history=(before_all.summary(), after_all.summary()),
-                              method=options.get("method", "contour"))
+                              method=method)
 
 
 def _kept(errors: ContourErrors, keep: slice) -> ContourErrors:

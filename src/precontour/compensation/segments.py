@@ -44,7 +44,7 @@ from ..trajectory.limits import AxisLimits, check_limits
 from ..trajectory.sampled import Trajectory
 from .blocks import SUMMARY_KEYS, Fallback
 from .pieces import PIECE_SAMPLES, Piece, overlap_samples, plan_pieces
-from .stops import LearningReport
+from .stops import SETTLE_DELAYS, LearningReport
 from .within_limits import LimitedCompensation, _predicted, _ramp, learn_commands
 
 #: Width (s) of the C2 blend from the previous segment's commands into a segment's, at the
@@ -65,11 +65,13 @@ def plan_segments(reference: Trajectory, models, segment_samples: int = PIECE_SA
 
 def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
                       machine_of, passes: int, *, segment_samples: int = PIECE_SAMPLES,
-                      progress=None, **learning) -> LimitedCompensation:
+                      progress=None, update: str = "mean",
+                      local: bool = True) -> LimitedCompensation:
     """:func:`~.within_limits.learn_within_limits` of ``limited`` segment by segment (see the
     module docstring). ``machine_of(t)`` gives the machine model at the times ``t`` of a
     segment (e.g. ``lambda t: ensemble_actual(t, machine, controller, ensemble)``);
-    ``segment_samples``: kept samples per segment. ``progress(label, summary)`` after each
+    ``segment_samples``: kept samples per segment. ``update``, ``local``: as for
+    :func:`~.stops.learn_at_stops`. ``progress(label, summary)`` after each
     command tried, the label prefixed with the segment. ``result.learning`` joins the
     segments' reports (:func:`join_reports`)."""
     reference = limited.reference
@@ -95,16 +97,16 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
         else:
             project = None
         q_start = q[a:b].copy() if project is None else project(q_linear[a:b])
-        options = dict(learning)
-        if piece.keep_stop < n:
-            options["settle_delays"] = ()   # the program's final dwell is the last segment's
+        # the program's final dwell is the last segment's: only it tries settled tails
+        settle_delays = SETTLE_DELAYS if piece.keep_stop >= n else ()
         label = f"segment {k + 1}/{len(segments)}: "
         q_kept, report = learn_commands(
             part, q_start, kinematics, models, limits, machine_of(part.t), passes,
             line=None if line is None else line[a:b],
             progress=None if progress is None else
             (lambda text, summary, label=label: progress(label + text, summary)),
-            scored=(first, stop), project=project, **options)
+            scored=(first, stop), project=project, update=update, local=local,
+            settle_delays=settle_delays)
         q[a:b] = q_kept if project is None else project(q_kept)
         reports.append((report, stop - first, b - a, label))
     report = join_reports(reports, n)

@@ -36,7 +36,8 @@ from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
-from .stops import LIMITED_SMOOTHING, LearningReport, MachineActual, learn_at_stops
+from .stops import (LIMITED_SMOOTHING, SETTLE_DELAYS, LearningReport, MachineActual,
+                    learn_at_stops)
 
 #: Re-timing rounds before giving up.
 MAX_ROUNDS = 16
@@ -114,9 +115,13 @@ class LimitedCompensation:
 def compensate_within_limits(reference: Trajectory, kinematics, models, limits: AxisLimits, *,
                              line: np.ndarray | None = None, max_rounds: int = MAX_ROUNDS,
                              progress=None, splice: bool = True, min_speed: float = MIN_SPEED,
-                             **options) -> LimitedCompensation:
-    """Compensate ``reference`` (with :func:`~.precompensate.compensate` and ``options``),
-    slowing it down locally and compensating again until the commands keep ``limits``.
+                             method: str = "contour", iterations: int = 1,
+                             tol_linear: float | None = None, tol_rotary: float | None = None,
+                             pass_progress=None) -> LimitedCompensation:
+    """Compensate ``reference`` (with :func:`~.precompensate.compensate`: ``method``,
+    ``iterations``, ``tol_linear``, ``tol_rotary``; ``pass_progress(pass, summary)`` after
+    each pass of the first round), slowing it down locally and compensating again until the
+    commands keep ``limits``.
 
     The first round compensates the whole reference. After a re-timing, ``splice=True``
     compensates again only around the slowed windows and splices the result into the
@@ -130,6 +135,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     """
     if not 0.0 < min_speed <= 1.0:
         raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
+    options = dict(method=method, iterations=iterations, tol_linear=tol_linear,
+                   tol_rotary=tol_rotary)
     ts = reference.ts
     t0 = float(reference.t[0])
     original_line = line
@@ -142,13 +149,13 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     first_check = None
     if progress is not None:
         progress(1, f"compensate ({current.n_samples} samples)")
-    result = compensate_program(current, kinematics, models, **options)
+    result = compensate_program(current, kinematics, models, progress=pass_progress, **options)
     q = result.trajectory.q
     kinks = []
     for round_ in range(1, max_rounds + 1):
         check = check_limits(q, ts, limits, t0=t0)
         first_check = first_check or check
-        if not check.ok and options.get("method", "contour") == "contour":
+        if not check.ok and method == "contour":
             q, windows = smooth_kinks(current, q, check, models, options)
             if windows:
                 kinks += [(t0 + to_original[a] * ts, t0 + to_original[b] * ts)
@@ -202,7 +209,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                                  f"{len(retimed.slowdowns)} slowed window(s))")
         if splice:
             q = splice_recompensation(current, retimed.old_index, q, kinematics, models,
-                                      passes=result.iterations, **options)
+                                      passes=result.iterations, method=method,
+                                      tol_linear=tol_linear, tol_rotary=tol_rotary)
         else:
             result = compensate_program(current, kinematics, models, **options)
             q = result.trajectory.q
@@ -259,7 +267,8 @@ def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models
 
 def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
                         machine_actual: MachineActual, passes: int, *,
-                        progress=None, **learning) -> LimitedCompensation:
+                        progress=None, update: str = "mean",
+                        local: bool = True) -> LimitedCompensation:
     """``limited`` improved by ``passes`` passes of learning against the nonlinear machine
     model ``machine_actual`` (:func:`~.stops.learn_at_stops`, from its commands on its
     reference; one machine, or better an ensemble of draws of it,
@@ -268,15 +277,14 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
     and a command beyond a limit is not kept; nowhere worse than the uncompensated command on
     every draw, in whole and block by block (each source line of ``limited.line``, else
     windows), falling back locally to axis tracking-error pre-compensation or the planned
-    command where needed (:mod:`.blocks`). ``learning``: further options of
-    :func:`~.stops.learn_at_stops` (``update``, ``local``). ``result.learning`` reports what
-    was tried and kept."""
+    command where needed (:mod:`.blocks`). ``update``, ``local``: as for
+    :func:`~.stops.learn_at_stops`. ``result.learning`` reports what was tried and kept."""
     reference = limited.reference
     q_start = limited.result.trajectory.q
     path = ReferencePath.from_trajectory(reference)
     q, report = learn_commands(reference, q_start, kinematics, models, limits, machine_actual,
                                passes, line=limited.line, progress=progress, path=path,
-                               **learning)
+                               update=update, local=local)
     result = replace(limited.result, learning=report)
     if q is not q_start:
         after = contour_errors(path, predicted_actual(reference.t, q, models), kinematics)
@@ -290,7 +298,9 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                    limits: AxisLimits, machine_actual: MachineActual, passes: int, *,
                    line: np.ndarray | None = None, progress=None,
                    scored: tuple[int, int] | None = None, project=None,
-                   path: ReferencePath | None = None, **learning) -> tuple[np.ndarray, LearningReport]:
+                   path: ReferencePath | None = None, update: str = "mean", local: bool = True,
+                   settle_delays: tuple[float, ...] = SETTLE_DELAYS
+                   ) -> tuple[np.ndarray, LearningReport]:
     """The learning of :func:`learn_within_limits` on ``reference`` from the commands
     ``q_start``: the command kept and the report (:func:`~.stops.learn_at_stops`).
 
@@ -300,7 +310,9 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     a command ``q`` learning proposes (its lead-in held at the commands already decided); the
     machine model, the limit check and the fallbacks see projected commands, the
     uncompensated ``reference.q`` itself excepted. The command returned is not projected.
-    ``path``: the reference's curves, where already built.
+    ``path``: the reference's curves, where already built. ``update``, ``local``,
+    ``settle_delays``: as for :func:`~.stops.learn_at_stops` (a segment that does not hold the
+    program's final dwell tries no settled tails).
     """
     ts, t0 = reference.ts, float(reference.t[0])
     path = ReferencePath.from_trajectory(reference) if path is None else path
@@ -331,7 +343,8 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           smoothing=LIMITED_SMOOTHING, admissible=within_limits,
                           progress=progress, line=line,
                           fallbacks=(("tracking-error pre-compensation", tracking),),
-                          t0=t0, tail_errors_of=tail_errors_of, **learning)
+                          t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
+                          settle_delays=settle_delays)
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):
@@ -364,7 +377,9 @@ def decay_time(models) -> float:
 
 
 def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previous: np.ndarray,
-                          kinematics, models, *, passes: int, **options) -> np.ndarray:
+                          kinematics, models, *, passes: int, method: str = "contour",
+                          tol_linear: float | None = None,
+                          tol_rotary: float | None = None) -> np.ndarray:
     """Compensated commands for a re-timed ``reference``, computing only around its slowed
     windows: elsewhere they are ``q_previous`` (the compensated commands before re-timing) at
     the old sample ``old_index`` of each new sample.
@@ -374,13 +389,12 @@ def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previo
     B = SPLICE_BLEND, E = SPLICE_END, in samples); its first L samples, where the stretch's
     start from rest has not yet decayed, and its last E are discarded, and over B before
     a - G and after b + L the new commands are blended in and out with a C2 weight. Stretches
-    that overlap are merged. ``passes`` compensation passes are applied, as in the whole
-    trajectory's compensation (0: the commands stay uncompensated).
+    that overlap are merged. ``passes`` compensation passes of ``method`` at the fit
+    tolerances ``tol_linear``, ``tol_rotary`` are applied, as in the whole trajectory's
+    compensation (0: the commands stay uncompensated).
     """
     n = reference.n_samples
     ts = reference.ts
-    options = {k: v for k, v in options.items()
-               if k not in ("iterations", "min_passes", "progress", "reference")}
     whole = np.clip(np.rint(old_index).astype(int), 0, q_previous.shape[0] - 1)
     if passes == 0:
         return reference.q.copy()
@@ -406,8 +420,9 @@ def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previo
         part = slice(lo_k, hi_k + 1)
         sub = Trajectory(t=reference.t[part], q=reference.q[part], P=reference.P[part],
                          O=reference.O[part])
-        new = compensate(sub, kinematics, models, iterations=passes, min_passes=passes,
-                         **options).trajectory.q
+        new = compensate(sub, kinematics, models, method=method, iterations=passes,
+                         min_passes=passes, tol_linear=tol_linear,
+                         tol_rotary=tol_rotary).trajectory.q
         index = np.arange(lo_k, hi_k + 1)
         up = _ramp((index - (a_k - G - B)) / B) if lo_k > 0 else np.ones(index.size)
         down = _ramp(((b_k + L + B) - index) / B) if hi_k < n - 1 else np.ones(index.size)

@@ -4,6 +4,13 @@ Formats (picked by ``fmt`` or the file's suffix):
 
 * ``table``: CSV / ``.npz`` / ``.parquet`` with columns ``t``, ``X..C`` (commanded), ``X_act..C_act``
   (measured) and optionally ``I_X..I_C`` (motor current, A); mm, rad, s.
+
+Columns (and ``columns`` names) are the machine's axis letters (``axis_names``): ``B``,
+``B_act``, ``I_B`` on a B-C machine, ``A``..``B`` on an A-B machine. A B-C machine's log with
+the former column ``A`` (``A_act``, ``I_A``) holding B is still read, with a one-line notice,
+as the trajectory tables are (:func:`precontour.tables.read_trajectory`). Inside, the axes
+are keyed by the library's q slots (``X Y Z A C``), as the drives and the error models are;
+messages name the machine's letters.
 * ``halsampler``: LinuxCNC halsampler(1) output, one line per sample, values in pin order
   separated by blanks; ``columns`` names them (``n`` for the sample number that ``-t`` prints,
   empty names skip a pin); ``overrun`` lines (lost samples) are errors. Without a ``t`` column
@@ -37,7 +44,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..defaults import LOG_FORMATS as FORMATS
-from ..errors import InputError
+from ..errors import InputError, notice
 from ..files import check_input_file, refuse_non_text
 from ..machine.drives import AXES
 from ..tables import SUPPORTED_SUFFIXES, read_columns
@@ -83,15 +90,19 @@ class ServoLog:
 
 def read_servo_log(path: str | Path, *, fmt: str | None = None,
                    columns: Sequence[str] | None = None, period: float | None = None,
-                   default_period: float | None = None, angle_scale: float = 1.0) -> ServoLog:
+                   default_period: float | None = None, angle_scale: float = 1.0,
+                   axis_names: Sequence[str] = AXES) -> ServoLog:
     """Read and check a servo log (see the module docstring for the formats).
 
     ``period`` (s) is the time step of a log without a ``t`` column (it overrides a halscope
     log's own); ``default_period`` is used when neither is given (e.g. the machine's servo
-    period). ``angle_scale`` multiplies A and C values (``pi/180`` for logs in degrees).
+    period). ``angle_scale`` multiplies the rotary axes' values (``pi/180`` for logs in
+    degrees). ``axis_names``: the machine's letters (``Machine.axis_names``), which name the
+    log's columns.
     """
     path = Path(path)
     source = str(path)
+    letters = _Letters(tuple(axis_names))
     if fmt is None:
         fmt = "table" if path.suffix.lower() in SUPPORTED_SUFFIXES else None
         if fmt is None:
@@ -100,20 +111,74 @@ def read_servo_log(path: str | Path, *, fmt: str | None = None,
         raise InputError(f"unknown log format {fmt!r}; choose one of {', '.join(FORMATS)}",
                          source=source)
     if fmt == "table":
-        data = read_columns(path, (), ("t",) + COMMAND_COLUMNS + ACTUAL_COLUMNS + CURRENT_COLUMNS)
+        data = read_columns(path, (), ("t",) + letters.columns())
         first_row = 1
         if "t" not in data:
             if period is None:
                 raise InputError("missing column t (or give the sample period)", source=source,
                                  field="t")
     elif fmt == "halsampler":
-        data, first_row = _read_halsampler(path, columns)
+        data, first_row = _read_halsampler(path, columns, letters)
     else:
-        data, first_row, scope_period = _read_halscope(path, columns)
+        data, first_row, scope_period = _read_halscope(path, columns, letters)
         period = scope_period if period is None else period
     if period is None:
         period = default_period
-    return _assemble(source, data, first_row, period, angle_scale)
+    return _assemble(source, letters.to_slots(data, source), first_row, period, angle_scale,
+                     letters)
+
+
+class _Letters:
+    """The machine's axis letters against the library's q slots (``X Y Z A C``), for the
+    log's column names: ``B`` / ``B_act`` / ``I_B`` of a B-C machine is slot ``A``."""
+
+    def __init__(self, axis_names: tuple[str, ...]):
+        if len(axis_names) != len(AXES):
+            raise ValueError(f"axis_names must name {len(AXES)} axes, got {axis_names!r}")
+        self.names = axis_names
+        self.slot = dict(zip(axis_names, AXES))
+        self.letter = dict(zip(AXES, axis_names))
+        # a B-C machine: the former spelling A of its B column is read too
+        self.former = ({"A": "B"} if axis_names[3] == "B" and "A" not in axis_names else {})
+
+    def columns(self) -> tuple[str, ...]:
+        """Every column name a log may have: the machine's, then the former spellings."""
+        names = self.names + tuple(self.former)
+        return (tuple(names) + tuple(f"{a}_act" for a in names)
+                + tuple(f"I_{a}" for a in names))
+
+    def to_slots(self, data: dict, source: str) -> dict:
+        """The log's columns keyed by q slot (a former spelling with a notice)."""
+        present = {_axis_of(name) for name in data}
+        out = {}
+        for name, values in data.items():
+            axis = _axis_of(name)
+            if axis not in self.slot and axis not in self.former:
+                out[name] = values    # t, n, or a halscope channel of another name
+                continue
+            letter = axis
+            if axis in self.former:
+                letter = self.former[axis]
+                if letter in present:
+                    raise InputError(f"both column {name} and the machine's "
+                                     f"{name.replace(axis, letter)}: keep one",
+                                     source=source, field=name)
+            out[name.replace(axis, self.slot[letter])] = values
+        former = sorted(a for a in present if a in self.former)
+        if former:
+            notice(f"{source}: column {former[0]} read as the {self.former[former[0]]} axis "
+                   "of this B-C machine (the old spelling; write "
+                   f"{self.former[former[0]]})")
+        return out
+
+
+def _axis_of(name: str) -> str | None:
+    """The axis letter of a column name (``B``, ``B_act``, ``I_B``), None for t and n."""
+    if name in ("t", "n"):
+        return None
+    if name.startswith("I_"):
+        return name[2:]
+    return name[:-4] if name.endswith("_act") else name
 
 
 def _looks_like_halscope(path: Path) -> bool:
@@ -166,15 +231,17 @@ def _parse_number(text: str, source: str, line: int, field: str) -> float:
                          field=field) from None
 
 
-def _names(columns: Sequence[str] | None, count: int, source: str) -> list[str]:
+def _names(columns: Sequence[str] | None, count: int, source: str,
+           letters: _Letters) -> list[str]:
     if columns is None:
         raise InputError("name the columns (--columns X,X_act,...)", source=source)
     names = [c.strip() for c in columns]
-    known = set(("t", "n") + COMMAND_COLUMNS + ACTUAL_COLUMNS + CURRENT_COLUMNS)
+    known = set(("t", "n") + letters.columns())
     for name in names:
         if name and name not in known:
-            raise InputError(f"unknown column name {name!r}; use t, n, {', '.join(AXES)}, "
-                             "X_act.., I_X.. or an empty name to skip", source=source, field=name)
+            raise InputError(f"unknown column name {name!r}; use t, n, "
+                             f"{', '.join(letters.names)}, X_act.., I_X.. or an empty name to "
+                             "skip", source=source, field=name)
     duplicates = {n for n in names if n and names.count(n) > 1}
     if duplicates:
         raise InputError(f"column {sorted(duplicates)[0]!r} named twice", source=source)
@@ -209,7 +276,7 @@ class _Rows:
         return np.frombuffer(self.values, dtype=float).reshape(-1, self.width).copy()
 
 
-def _read_halsampler(path: Path, columns) -> tuple[dict, list[int]]:
+def _read_halsampler(path: Path, columns, letters: _Letters) -> tuple[dict, list[int]]:
     source = str(path)
     rows = _Rows()
     names = None
@@ -222,7 +289,7 @@ def _read_halsampler(path: Path, columns) -> tuple[dict, list[int]]:
                              "with a larger sampler FIFO", source=source, row=number)
         fields = text.split()
         if names is None:
-            names = _names(columns, len(fields), source)
+            names = _names(columns, len(fields), source, letters)
             rows.width = len(names)
         if len(fields) != len(names):
             raise InputError(f"expected {len(names)} values, found {len(fields)}", source=source,
@@ -244,7 +311,7 @@ def _read_halsampler(path: Path, columns) -> tuple[dict, list[int]]:
     return data, line_numbers
 
 
-def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
+def _read_halscope(path: Path, columns, letters: _Letters) -> tuple[dict, list[int], float]:
     source = str(path)
     lines = _text_lines(path)
     first = next(lines, None)
@@ -266,7 +333,7 @@ def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
     if ";" in head[1] or not any(c.isspace() for c in head[1]):
         # LinuxCNC 2.10 and later: a label header, optional '# ...' lines, ';' rows.
         labels = [label.strip() for label in head[1].split(";")]
-        names = labels if columns is None else _names(columns, len(labels), source)
+        names = labels if columns is None else _names(columns, len(labels), source, letters)
         rows.width = len(labels)
         for number, text in body:
             if text.startswith("#"):
@@ -285,7 +352,7 @@ def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
             these = fields[0::2]
             if labels is None:
                 labels = these
-                names = labels if columns is None else _names(columns, len(labels), source)
+                names = labels if columns is None else _names(columns, len(labels), source, letters)
                 rows.width = len(labels)
             elif these != labels:
                 raise InputError(f"labels {' '.join(these)} differ from the first row's "
@@ -300,7 +367,8 @@ def _read_halscope(path: Path, columns) -> tuple[dict, list[int], float]:
     return data, rows.lines.tolist(), period_ns * 1e-9
 
 
-def _assemble(source: str, data: dict, first_row, period, angle_scale: float) -> ServoLog:
+def _assemble(source: str, data: dict, first_row, period, angle_scale: float,
+              letters: _Letters) -> ServoLog:
     row_of = (lambda k: k + first_row) if isinstance(first_row, int) else (lambda k: first_row[k])
     n = len(next(iter(data.values()))) if data else 0
     if n < MIN_SAMPLES:
@@ -310,7 +378,7 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
             raise InputError(f"value is not finite ({values[k]})", source=source, row=row_of(k),
-                             field=name)
+                             field=_named({name: None}, letters)[0])
     if "t" in data:
         t = data["t"]
     else:
@@ -338,9 +406,10 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
     command, actual, current = {}, {}, {}
     for axis in AXES:
         cmd, act = data.get(axis), data.get(f"{axis}_act")
+        name = letters.letter[axis]
         if (cmd is None) != (act is None):
-            missing = axis if cmd is None else f"{axis}_act"
-            raise InputError(f"axis {axis} has only one of {axis}, {axis}_act", source=source,
+            missing = name if cmd is None else f"{name}_act"
+            raise InputError(f"axis {name} has only one of {name}, {name}_act", source=source,
                              field=missing)
         if cmd is None:
             continue
@@ -350,17 +419,28 @@ def _assemble(source: str, data: dict, first_row, period, angle_scale: float) ->
         if f"I_{axis}" in data:
             current[axis] = data[f"I_{axis}"]
             if not np.any(current[axis]):
-                raise InputError(f"the motor current of {axis} is zero on every row (not "
+                raise InputError(f"the motor current of {name} is zero on every row (not "
                                  "recorded?): J, B and friction cannot be identified from it; "
                                  "record the current, or leave the column out to identify the "
-                                 "closed loop alone", source=source, field=f"I_{axis}")
-            _check_saturation(current[axis], source, f"I_{axis}", row_of)
+                                 "closed loop alone", source=source, field=f"I_{name}")
+            _check_saturation(current[axis], source, f"I_{name}", row_of)
     if not command:
         raise InputError(f"no axis in the log: need at least one pair of columns X, X_act (or "
-                         f"Y, Z, A, C); found {', '.join(data) or 'none'} (name them with "
+                         f"{', '.join(letters.names[1:])}); found "
+                         f"{', '.join(_named(data, letters)) or 'none'} (name them with "
                          "--columns)", source=source)
     return ServoLog(source=source, t=t, command=MappingProxyType(command),
                     actual=MappingProxyType(actual), current=MappingProxyType(current))
+
+
+def _named(data: dict, letters: _Letters) -> list[str]:
+    """The columns of ``data`` (keyed by q slot) by the machine's letters."""
+    out = []
+    for name in data:
+        axis = _axis_of(name)
+        out.append(name.replace(axis, letters.letter[axis]) if axis in letters.letter
+                   else name)
+    return out
 
 
 def _check_saturation(values: np.ndarray, source: str, name: str, row_of) -> None:

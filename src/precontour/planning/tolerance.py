@@ -93,6 +93,12 @@ class ContourTolerance:
                                  f"{value!r}", field="--tolerance")
             object.__setattr__(self, name, float(value))
 
+    @classmethod
+    def in_um(cls, tip_um: float, ori_mrad: float | None = None) -> "ContourTolerance":
+        """The tolerance of ``tip_um`` um at the tool tip and, optionally, ``ori_mrad`` mrad
+        of orientation (the units of ``run --tolerance TIP_UM[,ORI_MRAD]``)."""
+        return cls(tip=1e-3 * tip_um, orientation=None if ori_mrad is None else 1e-3 * ori_mrad)
+
     def ratios(self, errors: ContourErrors) -> np.ndarray:
         """Each sample's largest error over its tolerance (tip, and orientation if bounded)."""
         ratio = errors.tip / self.tip
@@ -338,15 +344,17 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
-                refine=None, exempt_lines=None, progress=None, **options) -> FeedSearch:
+                refine=None, exempt_lines=None, progress=None,
+                iterations: int = 1) -> FeedSearch:
     """The fastest local retiming of ``planned`` whose contour errors keep ``tolerance`` on
     the realistic virtual machine of ``machine`` running ``controller``; see the module
     docstring.
 
     ``compensate``: pre-compensate the commands within ``limits`` (default the machine's) on
-    each timing, with the error models ``models`` (default the controller's) and
-    ``options`` of :func:`~precontour.compensation.within_limits.compensate_within_limits`
-    (whose own slow-down floor is ``limits_min_speed``); False: the commands are the
+    each timing, with the error models ``models`` (default the controller's), up to
+    ``iterations`` passes (:func:`~precontour.compensation.within_limits.
+    compensate_within_limits`, whose own slow-down floor is ``limits_min_speed``); False:
+    the commands are the
     reference itself (kept within the limits). ``min_speed``: the lowest speed, a fraction
     of ``planned``'s, 0 < min_speed <= 1. ``ensemble``: the draws a timing that keeps the
     tolerance on the machine file's machine is checked on (None: that machine only).
@@ -379,7 +387,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                          f"({current.n_samples} samples)")
             limited = compensate_within_limits(current, machine.kinematics, models, limits,
                                                line=current_line, min_speed=limits_min_speed,
-                                               **options)
+                                               iterations=iterations)
             index = np.interp(limited.planned_index, np.arange(current.n_samples), index)
             current, current_line = limited.reference, limited.line
             if refine is not None:
@@ -504,15 +512,19 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                           tolerance: ContourTolerance, *, programmed: Trajectory | None = None,
                           feed_scale_max: float = 1.0, min_speed: float | None = None,
                           line: np.ndarray | None = None, ensemble: MachineEnsemble | None = None,
-                          refine=None, exempt_lines=None, progress=None,
-                          **search) -> FeedWithinTolerance:
+                          refine=None, exempt_lines=None, progress=None, models=None,
+                          limits: AxisLimits | None = None,
+                          limits_min_speed: float = MIN_SPEED, iterations: int = 1,
+                          where: str = "line", max_rounds: int = MAX_ROUNDS
+                          ) -> FeedWithinTolerance:
     """The compensated search and the uncompensated baseline (:func:`search_feed`) from the
     upper-bound plan ``planned`` (``feed_scale_max`` times the programmed feed), and the
     program as programmed (``programmed``, default ``planned``) measured uncompensated.
     ``min_speed``: the lowest speed as a fraction of ``planned``'s (default
     :data:`~precontour.defaults.DEFAULT_FEED_SCALE_MIN` of the programmed feed, i.e. that
     over ``feed_scale_max``). ``refine``: the compensated search's, ``exempt_lines``: both
-    searches' and the programmed errors' (:func:`search_feed`)."""
+    searches' and the programmed errors'; ``models``, ``limits``, ``limits_min_speed``,
+    ``iterations``, ``where``, ``max_rounds``: both searches' (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
     if min_speed is None:
         min_speed = min(1.0, DEFAULT_FEED_SCALE_MIN / feed_scale_max)
@@ -521,7 +533,9 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
                                  getattr(programmed, "line", None), exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
-                  exempt_lines=exempt_lines, **search)
+                  exempt_lines=exempt_lines, models=models, limits=limits,
+                  limits_min_speed=limits_min_speed, iterations=iterations, where=where,
+                  max_rounds=max_rounds)
     baseline = search_feed(planned, machine, controller, tolerance, compensate=False, **common)
     compensated = search_feed(planned, machine, controller, tolerance, compensate=True,
                               refine=refine, **common)

@@ -525,7 +525,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
                 sliding: str | None = "smc", ppi: str | None = "p-pi-high",
                 pids: Sequence[str] = ("pid-high", "pid-low"),
                 model_errors: Sequence[float] = DEFAULT_MODEL_ERRORS,
-                progress: Progress | None = None) -> tuple[CompareResult, StepCounter]:
+                progress: Progress | None = None) -> CompareResult:
     """Compare controllers and compensation methods on the realistic virtual machine (the
     paper's Figs. 11-16 and the claims' measured answers); the report folder is written by
     :func:`precontour.reports.compare_report.run_compare`.
@@ -557,8 +557,9 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
 
     Returns
     -------
-    CompareResult, StepCounter
-        The result (without report files) and the step counter, one step left for the report.
+    CompareResult
+        The result, without report files (:func:`~precontour.reports.compare_report.
+        run_compare` writes them, as its own step of ``progress``).
     """
     start = time.perf_counter()
     pids = tuple(pids)
@@ -589,7 +590,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     traj, source = _load_source(builtin, trajectory, machine)
 
     linear = ((ppi,) if ppi else ()) + pids
-    total = (1 if sliding else 0) + 5 * len(linear) + 3 * len(model_errors) + 1
+    total = (1 if sliding else 0) + 5 * len(linear) + 3 * len(model_errors)
     step = StepCounter(progress, total)
 
     reference = ReferencePath.from_trajectory(traj)
@@ -637,7 +638,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
                      model_error_rows=model_error_rows(result))
     result = replace(result, claims=make_claims(result),
                      timings={"compute": computed - start})
-    return result, step
+    return result
 
 
 def _check_model_errors(model_errors: Sequence[float]) -> tuple[float, ...]:

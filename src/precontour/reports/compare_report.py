@@ -26,7 +26,7 @@ from ..prediction.contour import ContourErrors
 from ..machine.drives import AXES, ROTARY_AXES
 from .demo_report import _axis_scale, _data_uri, _figure, _write, figure_png
 
-from .progress import Progress
+from .progress import Progress, ReportSteps
 from ..files import OutputSet, make_folder
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -503,15 +503,14 @@ def run_compare(out_dir: str | Path, *, builtin: str | None = None,
     the report folder. Parameters are those of
     :func:`precontour.reports.compare.compute_compare`; returns the :class:`CompareResult`
     with the files written (``index.html`` last)."""
-    result, step = compute_compare(out_dir, builtin=builtin, trajectory=trajectory,
-                                   machine=machine, iterations=iterations, sliding=sliding,
-                                   ppi=ppi, pids=pids, model_errors=model_errors,
-                                   progress=progress)
+    steps = ReportSteps(progress)
+    result = compute_compare(out_dir, builtin=builtin, trajectory=trajectory,
+                             machine=machine, iterations=iterations, sliding=sliding,
+                             ppi=ppi, pids=pids, model_errors=model_errors, progress=steps)
     computed = time.perf_counter()
-    step("writing the report")
+    steps.step("writing the report")
     files = write_compare_report(result)
     end = time.perf_counter()
     result.timings.update(report=end - computed, total=result.timings["compute"] + end - computed)
-    if progress is not None:
-        progress(step.done, step.total, f"done in {result.timings['total']:.1f} s")
+    steps.finish(f"done in {result.timings['total']:.1f} s")
     return replace(result, files=tuple(files))

@@ -142,7 +142,7 @@ def demo_file_names(paths, controllers) -> dict[str, str]:
 def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
              controllers: tuple[str, ...] = ("pid-high", "pid-low"), iterations: int = 1,
              machine: str | Path | Machine = "zhang2013",
-             progress: Progress | None = None) -> tuple[DemoResult, StepCounter]:
+             progress: Progress | None = None) -> DemoResult:
     """Run the paper's evaluation on the virtual machine (the report is written by
     :func:`precontour.reports.demo_report.run_demo`).
 
@@ -164,8 +164,9 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
 
     Returns
     -------
-    DemoResult, StepCounter
-        The result (without report files) and the step counter, one step left for the report.
+    DemoResult
+        The result, without report files (:func:`~precontour.reports.demo_report.run_demo`
+        writes them, as its own step of ``progress``).
     """
     paths, controllers = _check_names(paths, controllers, iterations)
     machine_file = machine
@@ -179,7 +180,7 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
         what="demo")
 
     runs_per_case = len(MACHINE_MODELS) * len(TRAJECTORY_KINDS)
-    total = len(paths) * (1 + len(controllers) * (1 + runs_per_case)) + 1
+    total = len(paths) * (1 + len(controllers) * (1 + runs_per_case))
     step = StepCounter(progress, total)
 
     start = time.perf_counter()
@@ -212,7 +213,7 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     result = DemoResult(out_dir=out_dir, machine=machine, paths=paths, controllers=controllers,
                         iterations=iterations, summaries=summaries, bandwidths=bandwidths,
                         cases=tuple(cases), timings=timings)
-    return result, step
+    return result
 
 
 def _check_names(paths, controllers, iterations) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -31,7 +31,7 @@ from ..machine.drives import AXES, ROTARY_AXES
 from ..files import OutputSet, atomic_write, make_folder
 from ..machine.machine_file import Machine
 from .demo import MACHINE_MODELS, DemoResult, compute_demo, demo_file_names
-from .progress import Progress
+from .progress import Progress, ReportSteps
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..trajectory.sampled import Trajectory
@@ -537,15 +537,15 @@ def run_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     Parameters are those of :func:`precontour.reports.demo.compute_demo`. Returns the
     :class:`DemoResult` with its table rows and the files written (``index.html`` last).
     """
-    result, step = compute_demo(out_dir, paths=paths, controllers=controllers,
-                                iterations=iterations, machine=machine, progress=progress)
+    steps = ReportSteps(progress)
+    result = compute_demo(out_dir, paths=paths, controllers=controllers,
+                          iterations=iterations, machine=machine, progress=steps)
     computed = time.perf_counter()
-    step("writing the report")
+    steps.step("writing the report")
     rows = table_rows(result)
     files = write_demo_report(result, rows)
     end = time.perf_counter()
     timings = result.timings
     timings.update(report=end - computed, total=timings["compute"] + end - computed)
-    if progress is not None:
-        progress(step.done, step.total, f"done in {timings['total']:.1f} s")
+    steps.finish(f"done in {timings['total']:.1f} s")
     return replace(result, rows=rows, files=tuple(files))

@@ -32,6 +32,34 @@ class StepCounter:
         self.done += 1
 
 
+class ReportSteps:
+    """The progress of a computation followed by ``after`` steps of the reporting layer (the
+    report's writing): passed as the computation's ``progress``, it reports the
+    computation's steps with a total that counts the later ones too; :meth:`step` then
+    reports each later step, :meth:`finish` the end. The computation returns its result
+    only; the count of steps lives here."""
+
+    def __init__(self, progress: Progress | None, after: int = 1):
+        self.progress = progress
+        self.after = after
+        self.done = 0
+        self.total = after
+
+    def __call__(self, done: int, total: int, message: str) -> None:
+        self.done, self.total = done + 1, total + self.after
+        if self.progress is not None:
+            self.progress(done, self.total, message)
+
+    def step(self, message: str) -> None:
+        if self.progress is not None:
+            self.progress(self.done, self.total, message)
+        self.done += 1
+
+    def finish(self, message: str) -> None:
+        if self.progress is not None:
+            self.progress(self.done, self.total, message)
+
+
 class ProgressLine:
     """Progress display on a stream: one updating line on a terminal, else a line per step.
 
