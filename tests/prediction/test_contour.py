@@ -168,3 +168,21 @@ def test_nearest_sample_on_a_creeping_stretch_matches_brute_force():
         h = np.linalg.norm(np.diff(curve, axis=0), axis=1).max()
         assert err.tip[i] <= dense + 1e-12
         assert err.tip[i] >= dense - 1.5 * h**2 / (8 * dense) - 1e-12
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_first_reaching_moves_past_its_start_at_the_window_edge(direction):
+    """The scan's gallop from the window's last sample: a target within round-off of that
+    sample's chord length (a reach below its last digit, as on a stretch at rest) is beyond
+    the window, not "reached" at the start, or the scan never moves on. Measured: a
+    371,156-sample piece of LinuxCNC's boat example, orientation at rest for 1,355 samples
+    of a window, hung in run --learn and run --tolerance; now 1.7 s."""
+    from precontour.prediction import contour
+
+    chord = np.array([0.0, 1.0, 22.73889240841357, 22.73889240841357, 23.0, 24.0])
+    j = 2 if direction < 0 else 3
+    for first_reaching in (contour._first_reaching.py_func, contour._first_reaching):
+        assert first_reaching(chord, j, direction, j, chord[j]) == j + direction
+        # within the window the first sample at or past the target, as before
+        assert first_reaching(chord, 0, 1, 5, 22.7) == 2
+        assert first_reaching(chord, 5, -1, 0, 1.5) == 1

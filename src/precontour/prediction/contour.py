@@ -396,6 +396,11 @@ def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
 def _first_reaching(chord, j, direction, bound, target):
     """First index m beyond j (in ``direction``, up to ``bound``) with chord[m] at or past
     ``target``; bound + direction if none."""
+    if j == bound:
+        # nothing beyond: without this, a target within round-off of chord[j] (a reach below
+        # its last digit, as on a stretch at rest) is "reached" at j itself, and the scan that
+        # called never moves on (it hung on a piece of LinuxCNC's boat example)
+        return bound + direction
     previous = j
     step = 1
     while True:
