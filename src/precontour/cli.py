@@ -308,7 +308,8 @@ def _add_identify_command(commands) -> None:
     ident = commands.add_parser(
         "identify", help="identify the drives' closed loops from a servo log, write a machine file",
         description="Read a servo log (commanded and actual axis positions at the servo rate, "
-                    "optionally motor currents I_X..I_C), identify each moving axis's closed "
+                    "optionally motor currents I_X..I_C; the machine's axis letters, B for A "
+                    "on a B-C machine), identify each moving axis's closed "
                     "loop x/X (output-error least squares, stable, order chosen on a held-out "
                     "part) and, with currents, the drives' J, B and friction; write the base "
                     "machine plus a controller of type tf.")
@@ -334,7 +335,8 @@ def _add_identify_command(commands) -> None:
                        help="sample period in s for logs without a t column (default: the "
                             "machine's servo period; halscope logs give theirs)")
     ident.add_argument("--angles", choices=("rad", "deg"), default="rad",
-                       help="unit of A and C in the log (default rad; LinuxCNC uses deg)")
+                       help="unit of the rotary axes in the log (default rad; LinuxCNC uses "
+                            "deg)")
     ident.add_argument("--base-controller", metavar="NAME",
                        help="base controller kept for axes the log cannot identify (default: "
                             "the machine's first linear controller)")
@@ -348,7 +350,8 @@ def _add_excite_command(commands) -> None:
                     "riding on a drift speed; one axis at a time, then all together; within "
                     "a fraction of the machine's velocity, acceleration and jerk limits.")
     _add_machine_options(excite, controller=None)
-    _add_output(excite, help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C), or .ngc / .txt "
+    _add_output(excite, help="output: .csv/.npz/.parquet (t,X,Y,Z,A,C; t,X,Y,Z,B,C on a B-C "
+                             "machine), or .ngc / .txt "
                              "(G-code / halstreamer, needs precontour.toolpath.writers)")
     excite.add_argument("--safety", type=_positive_float, default=DEFAULT_SAFETY, metavar="F",
                         help=f"fraction of v_max, a_max, j_max used (default {DEFAULT_SAFETY:g})")
@@ -357,7 +360,8 @@ def _add_excite_command(commands) -> None:
                                            f"{DEFAULT_TRAVEL_LINEAR:g} mm, shortened to fit an "
                                            "axis's travel; one given must fit)")
     excite.add_argument("--travel-rotary", type=_positive_float, default=None,
-                        metavar="RAD", help="half travel of A, C around the start (default "
+                        metavar="RAD", help="half travel of the rotary axes (A, C; B, C on a "
+                                            "B-C machine) around the start (default "
                                             f"{DEFAULT_TRAVEL_ROTARY:g} rad, shortened to fit "
                                             "an axis's travel; one given must fit)")
     excite.add_argument("--axes", default=None, metavar="AXES",
@@ -915,10 +919,11 @@ def run_identify(args: argparse.Namespace) -> int:
     inputs = input_files(args.log, args.machine)
     outputs = OutputSet(inputs)   # the machine file and the report: checked now, written as one
     outputs.file(args.output)
-    if args.report is not None:
-        from .reports.identify_report import IDENTIFY_REPORT_FILES
-        outputs.folder(args.report, IDENTIFY_REPORT_FILES, what="identification report")
     base = load_machine(args.machine)
+    if args.report is not None:
+        from .reports.identify_report import identify_report_files
+        outputs.folder(args.report, identify_report_files(base.axis_names),
+                       what="identification report")
     data, _ = machine_data(args.machine)
     columns = None if args.columns is None else args.columns.split(",")
     log = read_servo_log(args.log, fmt=args.format, columns=columns,
@@ -959,8 +964,9 @@ def format_identification_table(result) -> str:
         lines.append(f"{head}   {row['bw']:7.2f} ({row['base_bw']:6.2f})   "
                      f"{slow:.4g} ({base_slow:.4g})")
     for axis, p in result.physical.items():
-        drive = result.base.drive(axis)
-        lines.append(f"{axis}: J {p.J:.4g} kg m^2 (base {drive.J:.4g}), B {p.B:.4g} kg m^2/s "
+        name = result.letter(axis)   # keyed by q slot, printed by the machine's letter
+        drive = result.base.drive(name)
+        lines.append(f"{name}: J {p.J:.4g} kg m^2 (base {drive.J:.4g}), B {p.B:.4g} kg m^2/s "
                      f"(base {drive.B:.4g}), torque fit {p.torque_fit_pct:.2f} % over "
                      f"{p.windows} windows")
     return "\n".join(lines)

@@ -92,6 +92,21 @@ def test_bad_options(machine):
         write_excitation("exc.xyz", excitation_trajectory(machine, axes=("C",)), machine)
 
 
+@pytest.mark.parametrize("name, letter", [("zhang2013", "A"), ("linuxcnc-xyzbc-trt", "B")])
+def test_a_drive_without_limits_is_named_by_the_machines_letter(name, letter):
+    import dataclasses
+
+    from precontour import load_machine
+
+    machine = load_machine(name)
+    drives = list(machine.drives)
+    drives[3] = dataclasses.replace(drives[3], v_max=None)
+    machine = dataclasses.replace(machine, drives=tuple(drives))
+    with pytest.raises(InputError, match=rf"field 'drives\.{letter}\.v_max': drive {letter} "
+                                         "has no v_max"):
+        excitation_trajectory(machine, axes=("A",))
+
+
 @pytest.mark.parametrize("name", ["zhang2013", "linuxcnc-xyzac-trt", "linuxcnc-xyzbc-trt"])
 def test_the_promised_fraction_of_the_limits_on_every_builtin_machine(name):
     """Plain finite differences of the motion against 0.5 of v_max, a_max and j_max, and

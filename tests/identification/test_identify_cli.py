@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+import pytest
 
 from precontour import load_machine
 from precontour.simulation import simulate
@@ -10,7 +13,7 @@ from precontour.cli import main
 from precontour.machine.drives import AXES
 from precontour.tables import read_trajectory, write_columns
 
-from vm_logs import B_FACTORS, J_FACTORS
+from vm_logs import B_FACTORS, J_FACTORS, hidden_plant
 
 
 def test_excite_record_identify_use(tmp_path, capsys):
@@ -145,3 +148,84 @@ def test_tf_base_must_name_a_controller_with_drives(tmp_path, capsys):
                      "identified", "-o", str(tmp_path / "c.csv")]) == 2
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "[controllers.identified] base" in err and message in err
+
+
+@pytest.mark.parametrize("name, rotary, other", [("linuxcnc-xyzbc-trt", "B", "A"),
+                                                 ("linuxcnc-xyzab-tdr", "B", "C")])
+def test_identify_names_the_machines_letters(tmp_path, capsys, monkeypatch, name, rotary, other):
+    """excite, a log recorded on a virtual machine whose J and B differ from the file's, and
+    identify --report on a B-C (slot A is B) and an A-B machine (slot C is B): the printed
+    table, the notes, the J/B lines, the identified file, the report's files, table, figure
+    titles and legends name the machine's letters, never the slot letter ``other``; the
+    identified J of the rotary drive is the virtual machine's."""
+    import tomllib
+
+    import precontour.reports.identify_report as identify_report
+    from precontour.machine.drives import AXES
+
+    machine = load_machine(name)
+    letters = machine.axis_names
+    assert AXES[letters.index(rotary)] == other   # the slot the machine's rotary letter fills
+    exc = tmp_path / "exc.csv"
+    assert main(["excite", "--machine", name, "--axes", f"Y{rotary}", "--travel-linear", "5",
+                 "--travel-rotary", "0.1", "-o", str(exc)]) == 0
+    assert f"axes Y{rotary} one at a time" in capsys.readouterr().out
+    traj = read_trajectory(exc, axis_names=letters)
+    plant = hidden_plant(machine)
+    sim = simulate(traj.t, traj.q, plant, "pid-low", mode="discrete", friction=False,
+                   ff_friction=False)
+    columns = {"t": traj.t}
+    for i, axis in enumerate(letters):
+        columns[axis] = traj.q[:, i]
+        columns[f"{axis}_act"] = sim.q_act[:, i]
+        if axis in ("Y", rotary):
+            columns[f"I_{axis}"] = plant.drives[i].ka * sim.u[:, i]
+    log = write_columns(tmp_path / "log.parquet", columns)
+
+    figure_texts, legends = [], []
+    real_png = identify_report.figure_png
+
+    def recording_png(fig):
+        figure_texts.append([t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text"))])
+        legends.append([t.get_text() for ax in fig.axes if ax.get_legend() is not None
+                        for t in ax.get_legend().get_texts()])
+        return real_png(fig)
+
+    monkeypatch.setattr(identify_report, "figure_png", recording_png)
+    out, report = tmp_path / "ident.toml", tmp_path / "report"
+    assert main(["identify", str(log), "--machine", name, "--base-controller", "pid-low",
+                 "-o", str(out), "--report", str(report)]) == 0
+    printed = capsys.readouterr().out
+    lines = printed.splitlines()
+    header = lines.index(next(line for line in lines if line.startswith("axis  order")))
+    assert [line.split()[0] for line in lines[header + 1:header + 6]] == list(letters)
+    assert [line.split()[1] for line in lines[header + 1:header + 6]] != ["base"] * 5
+    assert set(re.findall(r"\baxis ([A-Z])\b", printed)) == set(letters) - {"Y", rotary}
+    j_line = next(line for line in lines if line.startswith(f"{rotary}: J "))
+    assert not any(line.startswith(f"{other}: J ") for line in lines)
+    # the identified inertia is the virtual machine's (the file's J times J_FACTORS), to 1 %
+    i = letters.index(rotary)
+    assert float(j_line.split()[2]) == pytest.approx(plant.drives[i].J, rel=0.01)
+    assert J_FACTORS[i] != 1 and abs(float(j_line.split()[2]) / machine.drives[i].J - 1) > 0.1
+
+    text = out.read_text()
+    data = tomllib.loads(text)
+    assert set(data["controllers"]["identified"]) == {"type", "base", *letters}
+    assert data["drives"][rotary]["J"] == pytest.approx(plant.drives[i].J, rel=0.01)
+    assert f"# Drives Y, {rotary}: J, B and friction" in text
+    identified = load_machine(out)
+    assert identified.axis_names == letters
+    assert identified.controller("identified").base == "pid-low"
+
+    assert sorted(p.name for p in report.iterdir()) == sorted(
+        ["bode.png", "index.html", "residuals_Y.png", f"residuals_{rotary}.png"])
+    page = (report / "index.html").read_text()
+    assert re.findall(r"<tr><td>([A-Z])</td>", page) == list(letters)
+    assert f"Axis {rotary}: tracking error" in page and f"<li>{rotary}: J " in page
+    assert f"Axis {other}" not in page and f"<li>{other}: J" not in page
+    residuals = figure_texts[1:]
+    assert legends[0] == [f"{a} {kind}" for a in letters for kind in ("identified", "base")]
+    titles = sorted(next(t for t in texts if t.startswith("axis ")) for texts in residuals)
+    assert [t.split(":")[0] for t in titles] == sorted(["axis Y", f"axis {rotary}"])
+    assert any(t == f"e {rotary} (mrad)" for texts in residuals for t in texts)
+    assert not any(re.search(rf"\b{other}\b", t) for texts in figure_texts for t in texts)

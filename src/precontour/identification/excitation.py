@@ -271,9 +271,10 @@ def excitation_trajectory(machine, *, travel: dict | None = None, safety: float 
         drive = machine.drive(axis)
         missing = [k for k in ("v_max", "a_max", "j_max") if getattr(drive, k) is None]
         if missing:
-            raise InputError(f"drive {axis} has no {missing[0]}; the excitation stays within "
-                             "the drive limits, so give them in the machine file",
-                             source=machine.source, field=f"drives.{axis}.{missing[0]}")
+            # drive.axis: the machine file's letter (B of a B-C machine), not the q slot
+            raise InputError(f"drive {drive.axis} has no {missing[0]}; the excitation stays "
+                             "within the drive limits, so give them in the machine file",
+                             source=machine.source, field=f"drives.{drive.axis}.{missing[0]}")
     q0, half = excitation_travel(machine, axes, travel=travel, start=start)
     limits = {axis: _Limits(safety * machine.drive(axis).v_max, safety * machine.drive(axis).a_max,
                             safety * machine.drive(axis).j_max) for axis in axes}

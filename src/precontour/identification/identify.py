@@ -7,6 +7,10 @@ the drive's J, B and friction (:mod:`.physical`) replace the base machine's in t
 When every identified axis got them, the ``tf`` table names the base controller as ``base``:
 with those drives it is the virtual machine that compensation learns against (a transfer
 function has no friction).
+
+Inside, axes are keyed by the library's q slots (``X Y Z A C``), as the log is; everything a
+user reads -- the notes, the machine file's tables and header, the summary rows -- names the
+base machine's letters (``B`` in slot A of a B-C machine, ``B`` in slot C of an A-B one).
 """
 
 from __future__ import annotations
@@ -43,16 +47,26 @@ class IdentificationResult:
     text: str
     base_models: tuple = field(default=())
 
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        """The machine's five axis letters in q order (``Machine.axis_names``)."""
+        return self.base.axis_names
+
+    def letter(self, axis: str) -> str:
+        """The machine's letter of q slot ``axis`` (a key of ``axes``, ``physical``, ``log``)."""
+        return self.axis_names[AXES.index(axis)]
+
     def identified_models(self) -> tuple[LinearErrorModel, ...]:
         return self.machine.controller(self.name).error_models(self.machine.drives)
 
     def summary_rows(self) -> list[dict]:
-        """Per axis: order, fit %, held-out %, bandwidths (Hz), poles (rad/s)."""
+        """Per axis: order, fit %, held-out %, bandwidths (Hz), poles (rad/s); ``axis`` is the
+        machine's letter, ``slot`` the q slot."""
         rows = []
         models = self.identified_models()
         for i, axis in enumerate(AXES):
             base = self.base_models[i]
-            row = dict(axis=axis, identified=axis in self.axes, base_bw=_bandwidth(base),
+            row = dict(axis=self.axis_names[i], slot=axis, identified=axis in self.axes, base_bw=_bandwidth(base),
                        base_poles=base.poles, bw=_bandwidth(models[i]), poles=models[i].poles)
             if axis in self.axes:
                 fit: AxisIdentification = self.axes[axis]
@@ -110,32 +124,33 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
                        f"period {base.servo_period * 1e3:.6g} ms")
     else:
         period_note = None
+    letter = dict(zip(AXES, base.axis_names))   # q slot -> the machine's letter
     fits: dict[str, AxisIdentification] = {}
     notes: dict[str, str] = {}
     physical: dict[str, PhysicalParameters] = {}
     for axis in AXES:
         if axis not in log.command:
-            notes[axis] = f"axis {axis}: not in the log; kept the base model ({ctrl.name})"
+            notes[axis] = f"axis {letter[axis]}: not in the log; kept the base model ({ctrl.name})"
             continue
         X, x = log.command[axis], log.actual[axis]
         try:
             # The base loop's slowest pole sets how long friction transients are left out.
             guard = friction_guard_for(base_models[AXES.index(axis)].poles)
-            fits[axis] = identify_axis(axis, X, x, ts, order=order, friction_guard=guard)
+            fits[axis] = identify_axis(letter[axis], X, x, ts, order=order, friction_guard=guard)
         except NotIdentifiable as exc:
             notes[axis] = f"{exc}; kept the base model ({ctrl.name})"
             continue
         if axis in log.current:
-            found = identify_physical(base.drive(axis), x, log.current[axis], ts)
+            found = identify_physical(base.drives[AXES.index(axis)], x, log.current[axis], ts)
             if found is None:
-                notes[axis] = (f"axis {axis}: too little motion at speed to identify J, B and "
+                notes[axis] = (f"axis {letter[axis]}: too little motion at speed to identify J, B and "
                                "friction from the currents; kept the base drive")
             elif not (np.isfinite(found.J) and found.J > 0 and np.isfinite(found.B)):
                 # a machine file needs J > 0: say which log and column, not the file's key
-                raise InputError(f"the motor current of {axis} does not fit its motion: it "
+                raise InputError(f"the motor current of {letter[axis]} does not fit its motion: it "
                                  f"gives an inertia J = {found.J:.4g} kg m^2 (must be > 0); is "
                                  "its sign or scale (A, kt) that of the drive's torque?",
-                                 source=log.source, field=f"I_{axis}")
+                                 source=log.source, field=f"I_{letter[axis]}")
             else:
                 physical[axis] = found
     if not fits:
@@ -155,7 +170,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
         table["base"] = drives_controller
     elif drives_controller is not None:
         notes["base"] = (f"no base controller named for learning: J, B and friction were not "
-                         f"identified for axes {', '.join(a for a in fits if a not in physical)} "
+                         f"identified for axes {', '.join(letter[a] for a in fits if a not in physical)} "
                          "(no motor currents); compensate --learn runs the identified loops")
     for i, axis in enumerate(AXES):
         if axis in fits:
@@ -164,13 +179,13 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
             den = base_models[i].den / base_models[i].den[0]
             num = np.polysub(base_models[i].den, base_models[i].num) / base_models[i].den[0]
             num = np.trim_zeros(num, "f")
-        table[axis] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
+        table[letter[axis]] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
     controllers = data.setdefault("controllers", {})
     if name in controllers:
         notes["name"] = f"controller {name!r} of the base machine replaced"
     controllers[name] = table
     for axis, p in physical.items():
-        drive = data["drives"][axis]
+        drive = data["drives"][letter[axis]]
         drive["J"], drive["B"] = p.J, p.B
         if p.friction is not None:
             drive["friction"] = {k: float(getattr(p.friction, k)) for k in (
@@ -179,7 +194,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
               f"{log.source}\n({log.n_samples} samples at {ts * 1e3:.6g} ms) by precontour "
               "identify: x/X per axis, continuous time, highest power first.")
     if physical:
-        header += f"\nDrives {', '.join(physical)}: J, B and friction identified from motor currents."
+        header += f"\nDrives {', '.join(letter[a] for a in physical)}: J, B and friction identified from motor currents."
     text = machine_file_text(data, header)
     machine = parse_machine(text, source="<identified machine>")
     return IdentificationResult(log=log, base=base, base_controller=ctrl, name=name, axes=fits,

@@ -1,6 +1,7 @@
 """Report of an identification (:mod:`precontour.identification.identify`): Bode plots of the
 identified vs the base closed loops, measured vs modelled tracking errors and their residuals
-per axis, the summary table, and an ``index.html`` with everything embedded.
+per axis, the summary table, and an ``index.html`` with everything embedded. Axes are named by
+the machine's letters (``residuals_B.png``, "axis B" on a B-C machine).
 """
 
 from __future__ import annotations
@@ -20,11 +21,12 @@ BODE_RANGE = (0.5, 500.0)
 
 
 def identify_report_files(axes=AXES) -> tuple[str, ...]:
-    """The files of an identification report whose identified axes are ``axes``."""
+    """The files of an identification report whose identified axes are ``axes`` (the
+    machine's letters; all five of ``Machine.axis_names`` for every file it may write)."""
     return ("bode.png",) + tuple(f"residuals_{axis}.png" for axis in axes) + ("index.html",)
 
 
-#: Every file an identification report may write (checked before identifying).
+#: Every file an identification report of an X Y Z A C machine may write.
 IDENTIFY_REPORT_FILES: tuple[str, ...] = identify_report_files()
 
 
@@ -35,7 +37,7 @@ def plot_bode(result) -> "Figure":  # noqa: F821
     f = np.geomspace(*BODE_RANGE, 400)
     w = 2 * np.pi * f
     models = result.identified_models()
-    for i, axis in enumerate(AXES):
+    for i, axis in enumerate(result.axis_names):
         color = f"C{i}"
         for model, style, label in ((models[i], "-", f"{axis} identified"),
                                     (result.base_models[i], ":", f"{axis} base")):
@@ -54,8 +56,10 @@ def plot_bode(result) -> "Figure":  # noqa: F821
 
 
 def plot_residuals(result, axis: str) -> "Figure":  # noqa: F821
-    """Measured vs modelled tracking error of one axis over the log, and their difference."""
+    """Measured vs modelled tracking error of one axis (a q slot, a key of ``result.axes``)
+    over the log, and their difference."""
     fit = result.axes[axis]
+    name = result.letter(axis)
     t = result.log.t
     e = result.log.command[axis] - result.log.actual[axis]
     scale, unit = _axis_scale(axis)
@@ -64,12 +68,12 @@ def plot_residuals(result, axis: str) -> "Figure":  # noqa: F821
     top.plot(t, e * scale, lw=0.6, label="measured e")
     top.plot(t, fit.e_model * scale, lw=0.6, label="identified model")
     top.axvline(t[fit.holdout_start], color="grey", ls="--", lw=0.8, label="held-out part starts")
-    top.set_ylabel(f"e {axis} ({unit})")
+    top.set_ylabel(f"e {name} ({unit})")
     top.legend(fontsize=7)
     bottom.plot(t, (fit.e_model - e) * scale, lw=0.6, color="tab:red")
     bottom.set_ylabel(f"model - measured ({unit})")
     bottom.set_xlabel("t (s)")
-    top.set_title(f"axis {axis}: order {fit.order}, fit {fit.fit_pct:.2f} % of max|e| "
+    top.set_title(f"axis {name}: order {fit.order}, fit {fit.fit_pct:.2f} % of max|e| "
                   f"(held-out {fit.holdout_pct:.2f} %)")
     fig.tight_layout()
     return fig
@@ -96,10 +100,10 @@ def write_identify_report(result, out_dir: str | Path) -> Path:
     if missing; only these files are overwritten, all together: an
     :class:`~precontour.files.OutputSet`). Returns the path of ``index.html``."""
     out = Path(out_dir)
-    names = identify_report_files(tuple(result.axes))
+    names = identify_report_files(tuple(result.letter(axis) for axis in result.axes))
     figures = [(names[0], "Closed loops x/X, identified vs base", figure_png(plot_bode(result)))]
     for name, axis in zip(names[1:-1], result.axes):
-        figures.append((name, f"Axis {axis}: tracking error, measured vs model",
+        figures.append((name, f"Axis {result.letter(axis)}: tracking error, measured vs model",
                         figure_png(plot_residuals(result, axis))))
     outputs = OutputSet()
     out = outputs.folder(out, names, what="identification report")
@@ -113,7 +117,7 @@ def _write_report(result, out: Path, figures) -> Path:
         _write(out / name, png)
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes.values())
     physical = "".join(
-        f"<li>{html.escape(a)}: J {p.J:.4g} kg m^2, B {p.B:.4g} kg m^2/s, torque fit "
+        f"<li>{html.escape(result.letter(a))}: J {p.J:.4g} kg m^2, B {p.B:.4g} kg m^2/s, torque fit "
         f"{p.torque_fit_pct:.2f} % ({p.windows} windows)</li>" for a, p in result.physical.items())
     body = [f"<h1>Identification: {html.escape(result.name)}</h1>",
             f"<p>Log {html.escape(result.log.source)}: {result.log.n_samples} samples at "
