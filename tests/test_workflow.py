@@ -283,7 +283,7 @@ def test_run_bad_inputs(tmp_path, capsys):
           "-o", out,
           "--stream", str(machine_file)], r"m\.toml: refusing to overwrite an input"),
         (["run", str(program), *RUN_MACHINE, "-o", out, "--report", str(report_file)],
-         r"report folder is a file"),
+         r"report output must be a directory, not a file"),
         (["run", str(program), *RUN_MACHINE, "-o", out, "--report", str(tmp_path / "a" / "b")],
          r"parent does not exist"),
         (["run", str(gcode), *RUN_MACHINE, "-o", out], r"home\.ngc, line 3, word 'G41'"),

@@ -163,16 +163,20 @@ def check_outputs(outputs: Iterable[PathLike], inputs: Iterable[PathLike | None]
 
 
 def check_report_folder(folder: PathLike, names: Iterable[str],
-                        inputs: Iterable[PathLike | None] = (), *, what: str = "report"
-                        ) -> Path:
+                        inputs: Iterable[PathLike | None] = (), *, what: str = "report",
+                        parent_must_exist: bool = False) -> Path:
     """Check a report folder before computing: it is a folder or can be created (no part of
-    its path is a file), it is writable, and none of ``folder/name`` for ``names`` is an input
-    or an existing folder. ``what`` names the report in messages. Returns the folder."""
+    its path is a file; with ``parent_must_exist``, only the folder itself may be new), it is
+    writable, and none of ``folder/name`` for ``names`` is an input or an existing folder.
+    ``what`` names the report in messages. Returns the folder."""
     folder = Path(folder)
     inputs = [Path(p) for p in inputs if p is not None]
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"the {what} output must be a directory, not a file",
                           source=str(folder))
+    parent = folder.parent if str(folder.parent) else Path(".")
+    if parent_must_exist and not folder.exists() and not parent.is_dir():
+        raise OutputError(f"the {what} folder's parent does not exist", source=str(folder))
     _check_writable_folder(folder, str(folder), create=True)
     for name in names:
         path = folder / name
@@ -358,10 +362,13 @@ class OutputSet:
         self._add(path)
         return path
 
-    def folder(self, folder: PathLike, names: Iterable[str], *, what: str = "report") -> Path:
-        """Declare and check a report folder and the names of the files written into it."""
+    def folder(self, folder: PathLike, names: Iterable[str], *, what: str = "report",
+               parent_must_exist: bool = False) -> Path:
+        """Declare and check a report folder and the names of the files written into it
+        (:func:`check_report_folder`)."""
         names = tuple(names)
-        folder = check_report_folder(folder, names, self.inputs, what=what)
+        folder = check_report_folder(folder, names, self.inputs, what=what,
+                                     parent_must_exist=parent_must_exist)
         self._new_folders += [p for p in (folder, *folder.parents) if not p.exists()]
         for name in names:
             self._add(folder / name)

@@ -413,16 +413,7 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> Outp
     if outputs.commands is not None:
         out.file(outputs.commands, suffixes=SUPPORTED_SUFFIXES)
     if outputs.report is not None:
-        report = outputs.report
-        if report.exists() and not report.is_dir():
-            raise InputError("report folder is a file", source=str(report))
-        parent = report.parent if str(report.parent) else Path(".")
-        if not report.exists() and not parent.is_dir():
-            raise InputError("the report folder's parent does not exist", source=str(report))
-        for source in inputs:
-            if Path(source).resolve() == report.resolve():
-                raise InputError("the report folder is an input", source=str(report))
-        out.folder(report, outputs.report_files, what="report")
+        out.folder(outputs.report, outputs.report_files, what="report", parent_must_exist=True)
     return out
 
 
