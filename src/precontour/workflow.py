@@ -575,8 +575,13 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         if can_learn(limited.reference, machine_obj):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
-            limited = learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
-                                        learn, ensemble=learning_ensemble)
+            limited = learn_on_ensemble(
+                limited, machine_obj, learner, models, axis_limits, learn,
+                ensemble=learning_ensemble,
+                # each command tried (a long program's segment by segment): learning on an
+                # hour-long program runs for many minutes
+                progress=lambda label, summary: step(
+                    1, f"learn: {label}, worst draw tip max {summary['tip_max_um']:.3g} um"))
             timings["learn"] = time.perf_counter() - start
 
     step(2, f"virtual machine, uncompensated and compensated "
