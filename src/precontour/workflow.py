@@ -820,30 +820,18 @@ def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     starts = block_starts(reference.n_samples, reference.ts, line)
     rotary = [d.is_rotary for d in machine_obj.drives]
-    judged = {"before": [judge([nominal[0]], starts)], "after": [judge([nominal[1]], starts)]}
-    first = 1 if ensemble.nominal else 0
-    for draw in range(first, ensemble.draws):
-        option = ensemble.option(draw, reference.n_samples, rotary)
-        for label, q in (("before", reference.q), ("after", q_compensated)):
+
+    def on_draws(q, errors_nominal):
+        if ensemble.nominal:
+            yield errors_nominal
+        for draw in range(1 if ensemble.nominal else 0, ensemble.draws):
             check_signals()
             q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
-                             **option).q_act
-            errors = contour_errors_program(reference, q_act, machine_obj.kinematics)
-            judged[label].append(judge([errors], starts))
-    if not ensemble.nominal:     # draw 0 was drawn too: the nominal machine is not one
-        judged = {label: parts[1:] for label, parts in judged.items()}
-    before, after = (_stack_judgements(judged[label]) for label in ("before", "after"))
-    return DrawCheck(ensemble=ensemble, before=before, after=after, starts=starts)
+                             **ensemble.option(draw, reference.n_samples, rotary)).q_act
+            yield contour_errors_program(reference, q_act, machine_obj.kinematics)
 
-
-def _stack_judgements(parts) -> Judgement:
-    """One :class:`~.compensation.blocks.Judgement` of the draws judged one at a time."""
-    return Judgement(summaries=tuple(s for p in parts for s in p.summaries),
-                     tip_max=np.concatenate([p.tip_max for p in parts]),
-                     tip_mean=np.concatenate([p.tip_mean for p in parts]),
-                     orientation_max=np.concatenate([p.orientation_max for p in parts]),
-                     orientation_mean=np.concatenate([p.orientation_mean for p in parts]),
-                     finite=all(p.finite for p in parts))
+    return DrawCheck(ensemble=ensemble, before=judge(on_draws(reference.q, nominal[0]), starts),
+                     after=judge(on_draws(q_compensated, nominal[1]), starts), starts=starts)
 
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,

@@ -35,7 +35,7 @@ is nowhere worse by construction. The report says which blocks fell back, why an
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -153,12 +153,16 @@ def score(summary: dict) -> float:
                              + ORIENTATION_WEIGHT * summary["ori_mean_mrad"]))
 
 
-def judge(errors: Sequence, starts: np.ndarray) -> Judgement:
+def judge(errors: Iterable, starts: np.ndarray) -> Judgement:
     """:class:`Judgement` of the contour errors of each draw (``ContourErrors``) in the blocks
-    that start at ``starts``."""
-    counts = np.diff(np.concatenate([starts, [errors[0].tip.size]]))
+    that start at ``starts``. ``errors`` may be any iterable, a generator among them: each
+    draw is reduced to its blocks before the next is taken (one draw of a long program in
+    memory at a time)."""
+    counts = None
     summaries, tip_max, tip_mean, ori_max, ori_mean = [], [], [], [], []
     for e in errors:
+        if counts is None:
+            counts = np.diff(np.concatenate([starts, [e.tip.size]]))
         summaries.append(e.summary())
         tip_max.append(np.maximum.reduceat(e.tip, starts))
         tip_mean.append(np.add.reduceat(e.tip, starts) / counts)
