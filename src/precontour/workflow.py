@@ -493,7 +493,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                  learning: LearningOptions, ensemble, limits: LimitOptions,
                  feed_options: ToleranceOptions, draws: int) -> RunResult:
     learn = learning.passes
-    learning_ensemble = ensemble if learning.ensemble is None else learning.ensemble
+    # the draws learning decides on and run checks on: the options', else ``ensemble``
+    learning_ensemble = learning.ensemble or ensemble or MachineEnsemble()
     learner = controller if learning.controller is None else learning.controller
     min_speed = limits.min_speed
     contour_tolerance = feed_options.tolerance
@@ -548,14 +549,12 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             line = getattr(planned, "line", None)
         refine = None
         if learn and can_learn(planned, machine_obj):
-            the_ensemble = MachineEnsemble() if learning_ensemble is None else learning_ensemble
-
             def refine(limited):
                 # a timing slowed beyond the learning's size is compensated without it
                 if not can_learn(limited.reference, machine_obj):
                     return limited
                 return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
-                                         learn, ensemble=the_ensemble)
+                                         learn, ensemble=learning_ensemble)
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
             refine=refine, exempt_lines=_rapid_lines(source),
@@ -597,8 +596,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         start = time.perf_counter()
         checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
                                  controller, simulated, line=limited.line,
-                                 ensemble=replace(learning_ensemble or MachineEnsemble(),
-                                                  draws=draws))
+                                 ensemble=replace(learning_ensemble, draws=draws))
         timings["virtual machine (draws)"] = time.perf_counter() - start
 
     step(3, "write G-code")
