@@ -43,7 +43,7 @@ import numpy as np
 from ..trajectory.limits import AxisLimits, check_limits
 from ..trajectory.sampled import Trajectory
 from .blocks import SUMMARY_KEYS, Fallback
-from .pieces import PIECE_SAMPLES, Piece, overlap_samples, plan_pieces
+from .pieces import PIECE_SAMPLES, Piece, _slice, overlap_samples, plan_pieces
 from .stops import SETTLE_DELAYS, LearningReport
 from .within_limits import LimitedCompensation, _predicted, _ramp, learn_commands
 
@@ -165,10 +165,3 @@ def join_reports(reports, n_samples: int) -> LearningReport:
                           draws=draws, uncompensated_draws=uncompensated, kept_draws=kept,
                           fallback=fallback,
                           fallback_runs=sum(r.fallback_runs for r, _, _, _ in reports))
-
-
-def _slice(traj: Trajectory, start: int, stop: int) -> Trajectory:
-    return Trajectory(traj.t[start:stop], traj.q[start:stop], traj.P[start:stop],
-                      traj.O[start:stop],
-                      line=None if getattr(traj, "line", None) is None
-                      else traj.line[start:stop])
