@@ -13,7 +13,7 @@ from precontour.cli import main
 from precontour.machine.drives import AXES
 from precontour.tables import read_trajectory, write_columns
 
-from vm_logs import B_FACTORS, J_FACTORS, hidden_plant
+from vm_logs import B_FACTORS, J_FACTORS, hidden_plant, write_log_file
 
 
 def test_excite_record_identify_use(tmp_path, capsys):
@@ -22,13 +22,7 @@ def test_excite_record_identify_use(tmp_path, capsys):
     assert "axes Y one at a time" in capsys.readouterr().out
     traj = read_trajectory(exc)
     machine = load_machine("zhang2013")
-    sim = simulate(traj.t, traj.q, machine, "pid-low", mode="discrete", friction=False,
-                   ff_friction=False)
-    columns = {"t": traj.t}
-    for i, axis in enumerate(AXES):
-        columns[axis] = traj.q[:, i]
-        columns[f"{axis}_act"] = sim.q_act[:, i]
-    log = write_columns(tmp_path / "log.parquet", columns)
+    log, sim = write_log_file(tmp_path / "log.parquet", traj, machine, AXES)
     out, report = tmp_path / "ident.toml", tmp_path / "report"
     assert main(["identify", str(log), "--machine", "zhang2013", "--base-controller", "pid-low",
                  "-o", str(out), "--name", "mine", "--report", str(report)]) == 0
@@ -172,15 +166,8 @@ def test_identify_names_the_machines_letters(tmp_path, capsys, monkeypatch, name
     assert f"axes Y{rotary} one at a time" in capsys.readouterr().out
     traj = read_trajectory(exc, axis_names=letters)
     plant = hidden_plant(machine)
-    sim = simulate(traj.t, traj.q, plant, "pid-low", mode="discrete", friction=False,
-                   ff_friction=False)
-    columns = {"t": traj.t}
-    for i, axis in enumerate(letters):
-        columns[axis] = traj.q[:, i]
-        columns[f"{axis}_act"] = sim.q_act[:, i]
-        if axis in ("Y", rotary):
-            columns[f"I_{axis}"] = plant.drives[i].ka * sim.u[:, i]
-    log = write_columns(tmp_path / "log.parquet", columns)
+    log, _ = write_log_file(tmp_path / "log.parquet", traj, plant, letters,
+                            currents=("Y", rotary))
 
     figure_texts, legends = [], []
     real_png = identify_report.figure_png

@@ -10,6 +10,7 @@ from precontour.simulation import simulate
 from precontour.identification import excitation_trajectory
 from precontour.identification.servo_log import ServoLog
 from precontour.machine.drives import AXES
+from precontour.tables import write_columns
 
 #: A plant whose J and B differ from zhang2013's (the "hidden" machine of the tests).
 J_FACTORS = (1.25, 0.75, 1.3, 0.8, 1.2)
@@ -39,6 +40,22 @@ def make_log(machine, plant, axes, *, controller="pid-high", friction=False, ff_
                    command={a: exc.q[:, i] for i, a in enumerate(AXES)},
                    actual={a: actual[:, i] for i, a in enumerate(AXES)}, current=current)
     return log, sim
+
+
+def write_log_file(path, traj, plant, letters, *, controller="pid-low", currents=()):
+    """The commands ``traj`` run on ``plant`` (discrete control, no friction) written as a
+    servo-log table at ``path``: t, each axis by its letter in ``letters`` and its ``_act``,
+    and the motor current ``I_`` of the axes in ``currents``; returns the file's path and the
+    SimulationResult."""
+    sim = simulate(traj.t, traj.q, plant, controller, mode="discrete", friction=False,
+                   ff_friction=False)
+    columns = {"t": traj.t}
+    for i, axis in enumerate(letters):
+        columns[axis] = traj.q[:, i]
+        columns[f"{axis}_act"] = sim.q_act[:, i]
+        if axis in currents:
+            columns[f"I_{axis}"] = plant.drives[i].ka * sim.u[:, i]
+    return write_columns(path, columns), sim
 
 
 #: A shorter excitation for the tests that need no friction-free drift speed.
