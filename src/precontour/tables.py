@@ -155,6 +155,18 @@ def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinemat
     return traj
 
 
+def reads_former_tilt_column(axis_names: Sequence[str]) -> bool:
+    """Whether a machine of these axis letters still reads the old spelling, column A
+    holding its B: a B-C machine (B in the tilt slot, no A axis)."""
+    return axis_names[3] == "B" and "A" not in axis_names
+
+
+def notice_former_tilt_column(source: str, column: str = "A") -> None:
+    """The one-line notice that a B-C machine's file gave its B as the old ``column``."""
+    notice(f"{source}: column {column} read as the B axis of this B-C machine (the old "
+           "spelling; write B)")
+
+
 def _axis_columns(columns: dict, axis_names: Sequence[str] | None, source: str
                   ) -> tuple[str, ...]:
     """The five column names that hold q, in q order: the machine's ``axis_names`` (its old
@@ -170,9 +182,8 @@ def _axis_columns(columns: dict, axis_names: Sequence[str] | None, source: str
                              "machine (--machine) or keep one", source=source, field="B")
         expected = ("X", "Y", "Z", tilt[0] if tilt else "A", "C")
     names = list(expected)
-    if names[3] == "B" and "B" not in columns and "A" in columns and names[4] != "A":
-        notice(f"{source}: column A read as the B axis of this B-C machine (the old "
-               "spelling; write B)")
+    if reads_former_tilt_column(names) and "B" not in columns and "A" in columns:
+        notice_former_tilt_column(source)
         names[3] = "A"
     missing = [name for name in names if name not in columns]
     if missing:

@@ -44,10 +44,11 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..defaults import LOG_FORMATS as FORMATS
-from ..errors import InputError, notice
+from ..errors import InputError
 from ..files import check_input_file, refuse_non_text
 from ..machine.drives import AXES
-from ..tables import SUPPORTED_SUFFIXES, read_columns
+from ..tables import (SUPPORTED_SUFFIXES, notice_former_tilt_column, read_columns,
+                      reads_former_tilt_column)
 from ..trajectory.sampled import check_uniform_time
 
 COMMAND_COLUMNS: tuple[str, ...] = AXES
@@ -139,7 +140,7 @@ class _Letters:
         self.slot = dict(zip(axis_names, AXES))
         self.letter = dict(zip(AXES, axis_names))
         # a B-C machine: the former spelling A of its B column is read too
-        self.former = ({"A": "B"} if axis_names[3] == "B" and "A" not in axis_names else {})
+        self.former = {"A": "B"} if reads_former_tilt_column(axis_names) else {}
 
     def columns(self) -> tuple[str, ...]:
         """Every column name a log may have: the machine's, then the former spellings."""
@@ -166,9 +167,7 @@ class _Letters:
             out[name.replace(axis, self.slot[letter])] = values
         former = sorted(a for a in present if a in self.former)
         if former:
-            notice(f"{source}: column {former[0]} read as the {self.former[former[0]]} axis "
-                   "of this B-C machine (the old spelling; write "
-                   f"{self.former[former[0]]})")
+            notice_former_tilt_column(source, former[0])
         return out
 
 
