@@ -680,7 +680,8 @@ def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, contro
     if limited.reference.n_samples > AT_ONCE_SAMPLES:
         return learn_by_segments(
             limited, machine_obj.kinematics, models, limits,
-            lambda t: ensemble_actual(t, machine_obj, controller, ensemble), passes,
+            lambda t, start: ensemble_actual(t, machine_obj, controller, ensemble, start=start),
+            passes,
             progress=progress)
     actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
     return learn_within_limits(limited, machine_obj.kinematics, models, limits, actual, passes,

@@ -71,3 +71,32 @@ def test_the_ensemble_model_runs_every_draw():
     np.testing.assert_array_equal(motions[2], simulate(t, q, MACHINE, "pid-high", **REALISTIC,
                                                        **draw_2).q_act)
     assert not np.array_equal(motions[1], motions[2])
+
+
+def test_a_stretch_reads_the_noise_of_its_samples_in_the_whole_program(monkeypatch):
+    """A draw's encoder noise at sample k is the same whether the draw is made for the whole
+    program or for a stretch starting at ``start`` (learning by segment decides on the
+    machines the whole program is checked on), across the noise blocks' boundaries; a program
+    within one block reads what it read before the blocks."""
+    from precontour.simulation import ensemble as module
+
+    monkeypatch.setattr(module, "NOISE_BLOCK", 64)
+    ensemble = MachineEnsemble(draws=3, seed=4)
+    whole = ensemble.option(2, 300)
+    for start, n in ((0, 10), (5, 59), (60, 10), (64, 64), (100, 200), (299, 1)):
+        part = ensemble.option(2, n, start=start)
+        np.testing.assert_array_equal(part["encoder_noise"],
+                                      whole["encoder_noise"][start:start + n])
+        for key in ("friction_scale", "inertia_scale", "damping_scale", "encoder_offset"):
+            np.testing.assert_array_equal(part[key], whole[key])
+    # independent blocks: block 1 is not block 0 again
+    assert not np.allclose(whole["encoder_noise"][:64], whole["encoder_noise"][64:128])
+    monkeypatch.setattr(module, "NOISE_BLOCK", 1 << 19)
+    rng = np.random.default_rng([4, 2])
+    rng.uniform(-1, 1, (2, 5)), rng.uniform(-1, 1, 5), rng.uniform(-1, 1, 5)
+    rng.uniform(0, 1, 5)
+    np.testing.assert_array_equal(ensemble.option(2, 300)["encoder_noise"],
+                                  rng.standard_normal((300, 5)) * np.array([2e-6] * 3
+                                                                           + [2e-8] * 2))
+    with pytest.raises(ValueError, match="start must be an integer >= 0"):
+        ensemble.option(1, 10, start=-1)

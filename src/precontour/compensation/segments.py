@@ -68,8 +68,10 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
                       progress=None, update: str = "mean",
                       local: bool = True) -> LimitedCompensation:
     """:func:`~.within_limits.learn_within_limits` of ``limited`` segment by segment (see the
-    module docstring). ``machine_of(t)`` gives the machine model at the times ``t`` of a
-    segment (e.g. ``lambda t: ensemble_actual(t, machine, controller, ensemble)``);
+    module docstring). ``machine_of(t, start)`` gives the machine model at the times ``t`` of
+    a segment whose first sample is the program's ``start`` (e.g.
+    ``lambda t, start: ensemble_actual(t, machine, controller, ensemble, start=start)``: the
+    draws read the encoder noise of those samples, as the whole program's check does);
     ``segment_samples``: kept samples per segment. ``update``, ``local``: as for
     :func:`~.stops.learn_at_stops`. ``progress(label, summary)`` after each
     command tried, the label prefixed with the segment. ``result.learning`` joins the
@@ -101,7 +103,7 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
         settle_delays = SETTLE_DELAYS if piece.keep_stop >= n else ()
         label = f"segment {k + 1}/{len(segments)}: "
         q_kept, report = learn_commands(
-            part, q_start, kinematics, models, limits, machine_of(part.t), passes,
+            part, q_start, kinematics, models, limits, machine_of(part.t, a), passes,
             line=None if line is None else line[a:b],
             progress=None if progress is None else
             (lambda text, summary, label=label: progress(label + text, summary)),

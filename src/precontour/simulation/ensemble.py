@@ -26,6 +26,16 @@ from .virtual_machine import REALISTIC, simulate_draws
 
 __all__ = ["MachineEnsemble", "ensemble_actual"]
 
+#: Samples per block of a draw's encoder noise. The noise of sample k of a program is a
+#: function of (seed, draw, k) alone: block 0 continues the draw's own generator (so a
+#: program of at most this many samples reads what it read before blocks existed), block
+#: c > 0 has a generator of its own, seeded (seed, draw, c). Why: learning by segment
+#: (:mod:`precontour.compensation.segments`) runs the machine on a stretch of the program,
+#: and its decisions must be taken on the machines that ``run`` then checks the whole program
+#: on, reading the same noise at the same sample; drawn afresh for each stretch, every
+#: stop's stick-slip was a new coin, and a segment's fallback did not hold on the check.
+NOISE_BLOCK = 1 << 19
+
 
 @dataclass(frozen=True)
 class MachineEnsemble:
@@ -102,18 +112,23 @@ class MachineEnsemble:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         object.__setattr__(self, "draws", int(self.draws))
 
-    def options(self, n_samples: int, rotary=(False, False, False, True, True)) -> list[dict]:
+    def options(self, n_samples: int, rotary=(False, False, False, True, True), *,
+                start: int = 0) -> list[dict]:
         """The :func:`~.virtual_machine.simulate` options of each draw (beyond
-        :data:`~.virtual_machine.REALISTIC`), for commands of ``n_samples`` samples;
-        ``rotary`` marks the axes whose encoder values are the rotary ones."""
-        return [self.option(d, n_samples, rotary) for d in range(self.draws)]
+        :data:`~.virtual_machine.REALISTIC`), for commands of ``n_samples`` samples, the
+        program's samples ``start`` on (the encoder noise of those samples,
+        :data:`NOISE_BLOCK`); ``rotary`` marks the axes whose encoder values are the rotary
+        ones."""
+        return [self.option(d, n_samples, rotary, start=start) for d in range(self.draws)]
 
     def option(self, draw: int, n_samples: int,
-               rotary=(False, False, False, True, True)) -> dict:
+               rotary=(False, False, False, True, True), *, start: int = 0) -> dict:
         """The options of draw ``draw`` alone (:meth:`options`): one draw's encoder noise in
         memory at a time, for a long program checked draw by draw."""
         if not 0 <= draw < self.draws:
             raise ValueError(f"draw must be within [0, {self.draws}), got {draw!r}")
+        if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or start < 0:
+            raise ValueError(f"start must be an integer >= 0, got {start!r}")
         if draw == 0 and self.nominal:
             return {}
         rotary = np.asarray(rotary, dtype=bool)
@@ -132,8 +147,24 @@ class MachineEnsemble:
             raise ValueError("encoder_resolution must be 0 for both kinds of axis or "
                              "for neither")
         if np.any(noise > 0):
-            option.update(encoder_noise=rng.standard_normal((n_samples, 5)) * noise)
+            option.update(encoder_noise=self._noise(rng, draw, int(start), n_samples) * noise)
         return option
+
+    def _noise(self, rng: np.random.Generator, draw: int, start: int, n_samples: int
+               ) -> np.ndarray:
+        """Unit normal noise of the program's samples [start, start + n_samples) of draw
+        ``draw``, block by block (:data:`NOISE_BLOCK`); ``rng``: the draw's generator, after
+        its friction, inertia, damping and grid offsets."""
+        stop = start + n_samples
+        parts = []
+        for block in range(start // NOISE_BLOCK, max(stop - 1, start) // NOISE_BLOCK + 1):
+            first = block * NOISE_BLOCK
+            source = rng if block == 0 else np.random.default_rng([self.seed, draw, block])
+            # a generator's normals come in order: the block's first rows are what a longer
+            # stretch of it would start with
+            rows = source.standard_normal((min(NOISE_BLOCK, stop - first), 5))
+            parts.append(rows[max(start - first, 0):])
+        return np.concatenate(parts)[:n_samples] if parts else np.zeros((0, 5))
 
     def describe(self) -> str:
         """One line for tables and reports."""
@@ -151,15 +182,16 @@ class MachineEnsemble:
 
 
 def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | str,
-                    ensemble: MachineEnsemble | None = None):
+                    ensemble: MachineEnsemble | None = None, *, start: int = 0):
     """The ensemble's machines at the times ``t`` as a model ``actual(q) -> q_act`` of
     commands (N, 5) to one actual motion per draw (D, N, 5), the draws run side by side
     (:func:`~.virtual_machine.simulate_draws`). ``ensemble`` defaults to
-    :class:`MachineEnsemble` ()."""
+    :class:`MachineEnsemble` (); ``start``: the program's sample at ``t[0]`` (a stretch of a
+    longer program reads that stretch's encoder noise)."""
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     t = np.asarray(t, dtype=float)
     rotary = [d.is_rotary for d in machine.drives]
-    options = ensemble.options(t.size, rotary)
+    options = ensemble.options(t.size, rotary, start=start)
 
     def actual(q: np.ndarray) -> np.ndarray:
         return simulate_draws(t, q, machine, controller, options, **REALISTIC)
