@@ -151,6 +151,18 @@ def test_new_commands_bad_inputs(traj_csv, paper_csv, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["compensate", str(paper_csv), "--learn", "-1", "-o", out])
     assert "must be >= 0" in capsys.readouterr().err
+    # run's --draws: the parser's one line for the option, and the library's own check
+    for bad in ("0", "2.5", "x"):
+        with pytest.raises(SystemExit):
+            main(["run", "program.ngc", "--machine", "zhang2013", "--controller", "pid-low",
+                  "--draws", bad, "-o", str(tmp_path / "out.ngc")])
+        err = capsys.readouterr().err
+        assert "--draws" in err and ("must be >= 1" in err or "whole number" in err), err
+    from precontour.errors import InputError
+    from precontour.workflow import run_program
+
+    with pytest.raises(InputError, match="--draws.*whole number >= 1"):
+        run_program("program.ngc", machine="zhang2013", controller="pid-low", draws=0)
 
 
 def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, capsys):
