@@ -104,6 +104,7 @@ HEADER = "Px,Py,Pz,Oi,Oj,Ok,F\n"
     ("", r"empty file \(no header row\)"),
     ("\n\n", r"empty file"),
     (HEADER, r"no data rows after the header"),
+    (HEADER.rstrip("\n"), r"no data rows after the header"),
     ("Px,Py,Pz,Oi,Ok\n1,2,3,0,1\n", r"row 1: header lacks column\(s\) Oj"),
     ("Px,Py,Pz,Oi,Oj,Ok,px\n", r"row 1, field 'Px': column 'Px' appears twice"),
     (HEADER + "0,0,0,0,0,1,\n1,abc,0,0,0,1,\n", r"row 3, field 'Py': cannot parse number 'abc'"),
@@ -128,6 +129,25 @@ def test_clcsv_errors(tmp_path, text, match):
     with pytest.raises(ToolPathError, match=match) as info:
         read_clcsv(path)
     assert str(info.value).startswith(str(path))
+
+
+def test_clcsv_header_without_line_break_exits_cleanly(tmp_path):
+    """A header with no line break after it (no data rows), read in a fresh interpreter that
+    must then exit cleanly. With pyarrow 14 (the oldest allowed), reading it from a Python file
+    object failed ("Empty CSV file or block") and left the reader's thread reading that file
+    without the GIL it needed: the interpreter aborted at exit ("terminate called without an
+    active exception"), and in a long test run the next read hung (the fuzz tests)."""
+    import subprocess
+    import sys
+
+    path = write(tmp_path, "header.csv", HEADER.rstrip("\n"))
+    code = ("import sys\nfrom precontour.errors import ToolPathError\n"
+            "from precontour.toolpath import read_clcsv\n"
+            "try:\n    read_clcsv(sys.argv[1])\nexcept ToolPathError as e:\n    print(e)\n")
+    done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "no data rows after the header" in done.stdout
 
 
 def test_clcsv_missing_file_and_bad_feed_units(tmp_path):

@@ -14,7 +14,6 @@ every other statement (``PARTNO``, ``MULTAX``, ``LOADTL``, ``SPINDL``, ``COOLNT`
 
 from __future__ import annotations
 
-import io
 from collections import Counter
 from itertools import repeat
 from pathlib import Path
@@ -191,7 +190,7 @@ def _motion_values(args: list[str], lines: list[int], source: str):
     names = ["x", "y", "z", "i", "j", "k"]
     try:
         table = pacsv.read_csv(
-            io.BytesIO("\n".join(rows).encode()),
+            pa.py_buffer("\n".join(rows).encode()),   # not a Python file (see clcsv.py)
             read_options=pacsv.ReadOptions(column_names=names),
             parse_options=pacsv.ParseOptions(quote_char=False),
             convert_options=pacsv.ConvertOptions(column_types={c: pa.float64() for c in names},

@@ -68,6 +68,10 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
         data.decode("utf-8")
     except UnicodeDecodeError:  # pyarrow would fail decoding a bad row's text for messages
         data = data.decode("utf-8", errors="replace").encode("utf-8")
+    if not data.endswith(b"\n"):
+        # a last row without its line break is a row (pyarrow refused a header-only file
+        # without one as malformed)
+        data += b"\n"
     header_line, header = _header(data, source)
     columns = _map_columns(header, source, header_line)
     wanted = [columns[c] for c in REQUIRED_COLUMNS]
@@ -82,8 +86,11 @@ def read_clcsv_report(path: str | Path, *, feed_units: str = "mm/min") -> ReadRe
         return "skip"
 
     try:
+        # an arrow buffer, not a Python file: pyarrow 14's threaded reader, failing on a file
+        # without a newline after its header, joined its reading thread while holding the
+        # GIL that thread needed to read a Python file (a hang, or an abort at exit)
         table = pacsv.read_csv(
-            io.BytesIO(data),
+            pa.py_buffer(data),
             parse_options=pacsv.ParseOptions(invalid_row_handler=on_invalid),
             convert_options=pacsv.ConvertOptions(
                 include_columns=wanted, column_types={c: pa.float64() for c in wanted},
