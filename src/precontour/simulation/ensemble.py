@@ -157,6 +157,7 @@ class MachineEnsemble:
         its friction, inertia, damping and grid offsets."""
         stop = start + n_samples
         parts = []
+        # (the block holding ``start`` at least, so that no samples give shape (0, 5))
         for block in range(start // NOISE_BLOCK, max(stop - 1, start) // NOISE_BLOCK + 1):
             first = block * NOISE_BLOCK
             source = rng if block == 0 else np.random.default_rng([self.seed, draw, block])
@@ -164,7 +165,7 @@ class MachineEnsemble:
             # stretch of it would start with
             rows = source.standard_normal((min(NOISE_BLOCK, stop - first), 5))
             parts.append(rows[max(start - first, 0):])
-        return np.concatenate(parts)[:n_samples] if parts else np.zeros((0, 5))
+        return np.concatenate(parts)
 
     def describe(self) -> str:
         """One line for tables and reports."""
