@@ -8,10 +8,17 @@ the file, the row and the field where the problem is.
 from __future__ import annotations
 
 import logging
+import numbers
 
 #: Where one-line notices go (a normalization, an unwrap): the command line prints them as
 #: ``precontour: note: ...``; a library user gets them through :mod:`logging`.
 NOTICES = logging.getLogger("precontour")
+
+
+def is_whole_number(value) -> bool:
+    """Whether ``value`` is an integer, Python's or numpy's (``numbers.Integral``), and not a
+    bool: the check of every count a caller gives (draws, passes, iterations, a seed)."""
+    return not isinstance(value, bool) and isinstance(value, numbers.Integral)
 
 
 def plain(value):

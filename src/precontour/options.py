@@ -28,16 +28,12 @@ import numpy as np
 
 from .defaults import (DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN,
                        DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED)
-from .errors import InputError
+from .errors import InputError, is_whole_number
 from .planning.tolerance import ContourTolerance
 from .simulation.ensemble import MachineEnsemble
 
 __all__ = ["LearningOptions", "LimitOptions", "ToleranceOptions", "learning_options",
            "limit_options", "with_former_spellings"]
-
-
-def _whole(value) -> bool:
-    return not isinstance(value, bool) and isinstance(value, (int, np.integer))
 
 
 @dataclass(frozen=True)
@@ -61,7 +57,7 @@ class LearningOptions:
     ensemble: MachineEnsemble | None = None
 
     def __post_init__(self):
-        if not _whole(self.passes) or self.passes < 0:
+        if not is_whole_number(self.passes) or self.passes < 0:
             raise InputError(f"learning passes must be a whole number >= 0, got "
                              f"{self.passes!r}", field="--learn")
         object.__setattr__(self, "passes", int(self.passes))

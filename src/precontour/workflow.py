@@ -29,7 +29,7 @@ from .compensation.within_limits import (LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
 from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
                        DEFAULT_FEED, EXPORT_FORMATS, default_max_samples)
-from .errors import InputError, MachineLimitError, ToleranceError, notice
+from .errors import InputError, MachineLimitError, ToleranceError, is_whole_number, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
@@ -468,7 +468,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
     Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
     machine's limits cannot be kept."""
-    if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) or draws < 1:
+    if not is_whole_number(draws) or draws < 1:
         raise InputError(f"must be a whole number >= 1, got {draws!r}", field="--draws")
     learning = learning_options(learn)
     limits = with_former_spellings(limits, LimitOptions, limit_options, "limits",

@@ -25,7 +25,7 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from .demo import MACHINE_MODELS
 from .progress import Progress, StepCounter
 from ..machine.drives import AXES, ROTARY_AXES
-from ..errors import InputError, plain
+from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
@@ -563,8 +563,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     """
     start = time.perf_counter()
     pids = tuple(pids)
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
-            or iterations < 1:
+    if not is_whole_number(iterations) or iterations < 1:
         raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     names = ((sliding,) if sliding else ()) + ((ppi,) if ppi else ()) + pids

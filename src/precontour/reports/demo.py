@@ -24,7 +24,7 @@ from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..machine.drives import LinearErrorModel
-from ..errors import InputError, plain
+from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
 from ..simulation.virtual_machine import REALISTIC, SimulationResult, simulate_trajectory
@@ -233,8 +233,7 @@ def _check_names(paths, controllers, iterations) -> tuple[tuple[str, ...], tuple
     if len(set(controllers)) != len(controllers):
         raise InputError(f"a controller is named twice: {', '.join(controllers)}",
                          field="controllers")
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) \
-            or iterations < 1:
+    if not is_whole_number(iterations) or iterations < 1:
         raise InputError(f"iterations must be a whole number >= 1, got {plain(iterations)!r}",
                          field="iterations")
     return paths, controllers

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from ..errors import is_whole_number
 from ..machine.controllers import Controller
 from ..machine.machine_file import Machine
 from .virtual_machine import REALISTIC, simulate_draws
@@ -92,8 +93,7 @@ class MachineEnsemble:
     nominal: bool = True
 
     def __post_init__(self):
-        if isinstance(self.draws, bool) or not isinstance(self.draws, (int, np.integer)) \
-                or self.draws < 1:
+        if not is_whole_number(self.draws) or self.draws < 1:
             raise ValueError(f"draws must be an integer >= 1, got {self.draws!r}")
         for name in ("friction_spread", "inertia_spread", "damping_spread"):
             value = getattr(self, name)
@@ -107,8 +107,7 @@ class MachineEnsemble:
                 raise ValueError(f"{name} must be two finite numbers >= 0 (linear mm, rotary "
                                  f"rad), got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(v) for v in value))
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) \
-                or self.seed < 0:
+        if not is_whole_number(self.seed) or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         object.__setattr__(self, "draws", int(self.draws))
 
@@ -127,7 +126,7 @@ class MachineEnsemble:
         memory at a time, for a long program checked draw by draw."""
         if not 0 <= draw < self.draws:
             raise ValueError(f"draw must be within [0, {self.draws}), got {draw!r}")
-        if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or start < 0:
+        if not is_whole_number(start) or start < 0:
             raise ValueError(f"start must be an integer >= 0, got {start!r}")
         if draw == 0 and self.nominal:
             return {}
