@@ -308,3 +308,39 @@ def test_a_diverging_update_is_not_kept_and_raises_nothing():
                                passes=2, settle_delays=(), line_search_steps=())
     assert q is q_linear and [(c.label, c.accepted) for c in report.candidates] == [
         ("uncompensated", True), ("linear", True), ("pass 1 (diverged)", False)]
+
+
+def test_a_command_worse_in_whole_on_one_draw_is_repaired_where_it_hurts():
+    """A linear command that removes the error everywhere but in its last 0.1 s block, where
+    one of two draws leaves 20 um against the uncompensated 10 um (so its whole max is worse on
+    that draw, and it is not admissible as it stands), falls back there to the planned command
+    and is kept: the whole max equals the uncompensated one (the block that fell back), the
+    mean is far below it, and no block is worse. Before, such a command was never repaired
+    and the uncompensated one came back."""
+    n = 400
+    q_ref = np.zeros((n, 5))
+    q_ref[:, 0] = 10e-3
+    q_linear = np.zeros((n, 5))
+    q_linear[:, 0] = 1e-3
+    q_linear[300:, 0] = 12e-3
+
+    def two_draws(q):
+        second = q.copy()
+        second[300:, 0] += np.where(q[300:, 0] > 11e-3, 8e-3, 0.0)
+        return np.stack([q, second])
+
+    def step(q_cmd, q_act, actual):
+        return q_cmd
+
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step, passes=0,
+                               settle_delays=(), line_search_steps=())
+    assert not report.candidates[1].accepted and report.candidates[1].repairable
+    assert report.chosen == "linear, fell back in 1 block(s)"
+    assert report.fallback is not None and len(report.fallback.blocks) == 1
+    assert report.fallback.blocks[0].start == pytest.approx(0.3)
+    changed = np.flatnonzero(np.any(q != q_linear, axis=1))
+    assert changed[0] >= 100      # the C2 blend starts within the hold and taper before it
+    np.testing.assert_array_equal(q[300:], q_ref[300:])   # the planned command, exactly
+    for kept, reference in zip(report.kept_draws, report.uncompensated_draws):
+        assert kept["tip_max_um"] <= reference["tip_max_um"]
+        assert kept["tip_mean_um"] < 0.6 * reference["tip_mean_um"]

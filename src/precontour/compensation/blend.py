@@ -45,5 +45,10 @@ def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np
     weight = np.clip(weight, 0.0, 1.0)
     weight[over] = 1.0
     q = q_compensated - weight[:, None] * (q_compensated - q_planned)
+    # where the correction is left out wholly, the planned command to the last digit (the
+    # difference above is off by round-off, and a fallback judged against the planned
+    # command's own errors must not lose by one unit in the last place)
+    whole = weight == 1.0
+    q[whole] = q_planned[whole]
     edges = np.flatnonzero(np.diff(np.r_[0, cut.astype(np.int8), 0]))
     return q, list(zip(edges[::2], edges[1::2] - 1))

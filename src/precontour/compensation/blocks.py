@@ -244,6 +244,38 @@ def _offending_blocks(judged: Judgement, reference: Judgement, program_margin: f
     return bad
 
 
+def repaired_score(judged: Judgement, reference: Judgement) -> float:
+    """An estimate of the worst-draw :func:`score` of ``judged`` once :func:`fall_back` has
+    mended it: its blocks that offend (:func:`_offending_blocks`) take the reference's errors
+    there, draw by draw (the blend reaches into the neighbours, so this is an estimate; the
+    mended command is judged again). Ranks the commands worth repairing: a command whose whole
+    max is worse on one draw because of one block is not ranked by that block."""
+    if not judged.finite:
+        return float("inf")
+    bad = _offending_blocks(judged, reference)
+    tip = np.where(bad, reference.tip_max, judged.tip_max).max(axis=1)
+    ori = np.where(bad, reference.orientation_max, judged.orientation_max).max(axis=1)
+    return float(np.max(tip + ORIENTATION_WEIGHT * ori))
+
+
+def improves(judged: Judgement, reference: Judgement, by: float | None = None) -> bool:
+    """Whether ``judged`` is better than ``reference`` by more than ``by`` (relative; default
+    :data:`TIE`) on the worst draw, in its largest errors (:func:`score`) or in its mean errors
+    (tip plus orientation weighted by :data:`ORIENTATION_WEIGHT`). A command mended block by
+    block must improve on the uncompensated command to be kept: one that is nowhere worse
+    only because it fell back nearly everywhere changes the program for nothing."""
+    if not judged.finite:
+        return False
+    by = TIE if by is None else by
+
+    def mean(j):
+        return max(s["tip_mean_um"] + ORIENTATION_WEIGHT * s["ori_mean_mrad"]
+                   for s in j.summaries)
+
+    return judged.score < (1.0 - by) * reference.score or \
+        mean(judged) < (1.0 - by) * mean(reference)
+
+
 def _reason(judged: Judgement, reference: Judgement, block: int) -> str:
     """Why a block fell back: its worst draw against the uncompensated command's."""
     if not judged.finite:

@@ -41,9 +41,9 @@ from scipy.ndimage import gaussian_filter1d
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..errors import PrecontourError
 from ..files import check_signals
-from .blocks import (ORIENTATION_WEIGHT, PROGRAM_MARGIN, SUMMARY_KEYS, Fallback, block_starts,
-                     fall_back,
-                     TIE, best, judge, not_finite, splice_errors, whole_ok, worse_blocks)
+from .blocks import (PROGRAM_MARGIN, SUMMARY_KEYS, TIE, Fallback, best,
+                     block_starts, fall_back, improves, judge, not_finite, repaired_score,
+                     splice_errors, whole_ok, worse_blocks)
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
@@ -105,14 +105,16 @@ class LearningCandidate:
     """One command tried on the machine model: its label, its contour errors on the worst
     draw per key (``ContourErrors.summary``: tip max/mean in um, orientation max/mean in
     mrad), whether it was admissible (nowhere worse in whole on every draw, within the limits
-    asked for, finite) and whether it was also nowhere worse block by block
-    (:func:`~.blocks.nowhere_worse`)."""
+    asked for, finite), whether it was also nowhere worse block by block
+    (:func:`~.blocks.nowhere_worse`), and whether it may be repaired by a local fallback
+    (``repairable``: finite and within the limits asked for, whether accepted or not)."""
 
     label: str
     summary: dict
     accepted: bool
     blocks_ok: bool = True
     median: dict | None = None
+    repairable: bool = True
 
 
 @dataclass(frozen=True)
@@ -349,11 +351,11 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         judged, motion, errors = judged_safely(q, like)
         if not judged.finite:
             label += " (diverged)"
-        ok = (judged.finite and whole_ok(judged, reference)
-              and (admissible is None or admissible(q)))
+        repairable = judged.finite and (admissible is None or admissible(q))
+        ok = repairable and whole_ok(judged, reference)
         blocks_ok = ok and not worse_blocks(judged, reference).any()
-        entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok, judged.median),
-                        q, judged))
+        entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok, judged.median,
+                                          repairable), q, judged))
         if progress is not None:
             progress(label, judged.worst)
         return (None if motion is None else learned_from(motion)), (motion, errors)
@@ -414,26 +416,35 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     kept = accepted[best([entry[2] for entry in accepted])]
     fallback = None
     fallback_runs = 0
-    if local and not kept[0].blocks_ok:
+    # Every finite command within the limits may be repaired, not only those nowhere worse
+    # in whole: a command worse on one draw's whole max is worse there in some block, which
+    # the fallback mends like any other (on LinuxCNC's boat, a segment whose linear command
+    # was worse on one draw's max kept the uncompensated command with no fallback tried).
+    repairable = [entry for entry in entries
+                  if entry[0].repairable and entry[1] is not q_reference]
+    repair_ranks = np.array([repaired_score(entry[2], reference) for entry in repairable])
+    if local and (not kept[0].blocks_ok or kept[1] is q_reference) and repairable:
         # The best candidates that hurt somewhere fall back there; the best of them is kept
         # if it beats the best candidate that needed no fallback. Several are tried because
         # where a fallback lands (a stop, the final dwell) decides what it costs.
         safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
-        order = [i for i in np.argsort(ranks, kind="stable")
-                 if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok]
+        order = [i for i in np.argsort(repair_ranks, kind="stable")
+                 if repair_ranks[i] <= safe_rank * (1.0 + TIE)
+                 and not repairable[i][0].blocks_ok]
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
                   if accepted[i][1] is not q_reference]
 
         def repair(i, alternatives=(), program_margin=0.0):
-            """Candidate ``i`` fallen back where it hurts (:func:`~.blocks.fall_back`):
-            its entry and the report, or None where only the planned command everywhere
-            would do."""
-            candidate, q_try, judged_try = accepted[i]
+            """Candidate ``i`` of the repairable ones fallen back where it hurts
+            (:func:`~.blocks.fall_back`): its entry and the report, or None where only the
+            planned command everywhere would do, or where it no longer improves on the
+            uncompensated command (:func:`~.blocks.improves`)."""
+            candidate, q_try, judged_try = repairable[i]
             q_fixed, judged, report_try = fall_back(
                 q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
                 starts, ts, alternatives=alternatives, fallbacks=fallbacks,
                 admissible=admissible, line=line, t0=t0, program_margin=program_margin)
-            if report_try.everywhere:
+            if report_try.everywhere or not improves(judged, reference):
                 return None
             label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
             return ((LearningCandidate(label, judged.worst, True, True, judged.median),
@@ -442,7 +453,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         repaired = []
         runs_before = runs
         for i in order[:REPAIRED_CANDIDATES]:
-            q_try = accepted[i][1]
+            q_try = repairable[i][1]
             alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
                             if q_alt is not q_try][:ALTERNATIVES]
             fixed = repair(i, alternatives)
