@@ -591,13 +591,18 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     timings["virtual machine (both)"] = time.perf_counter() - start
     checked = None
     if draws > 1:
-        step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated and "
-                "compensated")
+        step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
+                "(twice: its repeatability) and compensated")
         start = time.perf_counter()
         checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
                                  controller, simulated, line=limited.line,
                                  ensemble=replace(learning_ensemble, draws=draws))
         timings["virtual machine (draws)"] = time.perf_counter() - start
+        worse = checked.worse_in_whole()
+        if worse:
+            notice(f"the compensated program's {' and '.join(worse)} on its worst draw is "
+                   "above the uncompensated program's (friction at a stop or reversal; see "
+                   "the table): --learn N keeps a command that is nowhere worse on the draws")
 
     step(3, "write G-code")
     start = time.perf_counter()
@@ -762,6 +767,10 @@ class DrawCheck:
     before: Judgement
     after: Judgement
     starts: np.ndarray
+    #: The uncompensated commands run again on the same machines (their encoder noise
+    #: re-drawn), or None where the draws have no noise; ``before`` then carries each block's
+    #: repeatability (:func:`~.compensation.blocks.with_repeatability`).
+    again: Judgement | None = None
 
     def reductions(self, quantity: str = "tip_max") -> np.ndarray:
         """Per draw, the share of the uncompensated error the compensated commands removed
@@ -775,10 +784,45 @@ class DrawCheck:
 
     def worse_blocks(self) -> np.ndarray:
         """Indices of the blocks where the compensated commands' worst draw exceeds the
-        uncompensated commands' worst draw by more than the block margins."""
+        uncompensated commands' worst draw by more than the block margins and the
+        uncompensated commands' repeatability there."""
         from .compensation.blocks import worse_blocks
 
         return np.flatnonzero(worse_blocks(self.after, self.before))
+
+    def worse_blocks_without_repeatability(self) -> np.ndarray:
+        """:meth:`worse_blocks` by the block margins alone."""
+        from .compensation.blocks import worse_blocks
+
+        return np.flatnonzero(worse_blocks(self.after, replace(
+            self.before, tip_repeatability=None, orientation_repeatability=None)))
+
+    def self_worse_blocks(self) -> np.ndarray:
+        """Indices of the blocks where the uncompensated commands run again are worse than
+        themselves by the block margins alone: how many blocks the comparison counts that no
+        command decides (empty without a rerun)."""
+        from .compensation.blocks import worse_blocks
+
+        if self.again is None:
+            return np.zeros(0, dtype=int)
+        return np.flatnonzero(worse_blocks(self.again, replace(
+            self.before, tip_repeatability=None, orientation_repeatability=None)))
+
+    def worse_in_whole(self) -> tuple[str, ...]:
+        """The quantities (``tip max``, ``orientation max``) whose worst draw is above the
+        uncompensated commands' worst draw by more than the block margins: the compensated
+        program is worse where it is worst."""
+        from .compensation.blocks import (ORIENTATION_MARGIN, RELATIVE_MARGIN, TIP_MARGIN)
+
+        worse = []
+        for label, key, margin, unit in (("tip max", "tip_max_um", TIP_MARGIN, 1e3),
+                                         ("orientation max", "ori_max_mrad",
+                                          ORIENTATION_MARGIN, 1e3)):
+            before = max(s[key] for s in self.before.summaries)
+            after = max(s[key] for s in self.after.summaries)
+            if after > before + max(margin * unit, RELATIVE_MARGIN * before):
+                worse.append(label)
+        return tuple(worse)
 
     def table(self, where: str = "line") -> list[str]:
         """Lines of the end-of-run table: median and worst over the draws."""
@@ -796,12 +840,28 @@ class DrawCheck:
             lines.append(f"  {label} reduction, median / worst draw: max "
                          f"{np.median(r_max):.1f} / {r_max.min():.1f} %, mean "
                          f"{np.median(r_mean):.1f} / {r_mean.min():.1f} %")
+        if self.again is not None:
+            tip = 1e3 * float(np.max(self.before.tip_repeatability, initial=0.0))
+            ori = 1e6 * float(np.max(self.before.orientation_repeatability, initial=0.0))
+            lines.append(f"  uncompensated run again on the same machines (encoder noise "
+                         f"re-drawn): a {where}'s max changed by up to {tip:.3g} um / "
+                         f"{ori:.3g} urad, worse than itself beyond 0.1 um / 1 urad or 5 % on "
+                         f"{self.self_worse_blocks().size} {where}(s)")
         worse = self.worse_blocks().size
+        margins = ("beyond 0.1 um / 1 urad or 5 %"
+                   + (f" and the {where}'s repeatability" if self.again is not None else ""))
+        plain = self.worse_blocks_without_repeatability().size
         lines.append(f"  compensated worse than uncompensated (worst draw against worst draw, "
-                     f"beyond 0.1 um / 1 urad or 5 %) on {worse} {where}(s)"
-                     if worse else
+                     f"{margins}) on {worse} {where}(s)"
+                     + (f" ({plain} by the margins alone)" if plain != worse else "")
+                     if worse or plain else
                      f"  compensated nowhere worse than uncompensated on the worst draw "
                      f"(0.1 um / 1 urad or 5 % per {where})")
+        for quantity in self.worse_in_whole():
+            lines.append(f"  warning: the compensated program's {quantity} on its worst draw "
+                         f"is above the uncompensated program's (friction at a stop or "
+                         f"reversal): --learn N keeps a command that is nowhere worse on "
+                         f"the draws")
         return lines
 
 
@@ -813,24 +873,30 @@ def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj
     (default :class:`MachineEnsemble` ()): draw 0, the machine file's machine, is ``nominal``
     (their errors there, already simulated); the others are simulated one draw at a time, so
     that one draw's encoder noise and motion are in memory at once (a long program)."""
-    from .compensation.blocks import block_starts, judge
+    from .compensation.blocks import block_starts, judge, with_repeatability
     from .simulation.virtual_machine import REALISTIC, simulate
 
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     starts = block_starts(reference.n_samples, reference.ts, line)
     rotary = [d.is_rotary for d in machine_obj.drives]
 
-    def on_draws(q, errors_nominal):
-        if ensemble.nominal:
-            yield errors_nominal
-        for draw in range(1 if ensemble.nominal else 0, ensemble.draws):
+    def on_draws(q, errors_nominal, machines=ensemble):
+        if machines.nominal:
+            yield errors_nominal    # no encoder: a rerun is the same run
+        for draw in range(1 if machines.nominal else 0, machines.draws):
             check_signals()
             q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
-                             **ensemble.option(draw, reference.n_samples, rotary)).q_act
+                             **machines.option(draw, reference.n_samples, rotary)).q_act
             yield contour_errors_program(reference, q_act, machine_obj.kinematics)
 
-    return DrawCheck(ensemble=ensemble, before=judge(on_draws(reference.q, nominal[0]), starts),
-                     after=judge(on_draws(q_compensated, nominal[1]), starts), starts=starts)
+    before = judge(on_draws(reference.q, nominal[0]), starts)
+    again = None
+    if ensemble.noisy:
+        again = judge(on_draws(reference.q, nominal[0], ensemble.rerun()), starts)
+        before = with_repeatability(before, again)
+    return DrawCheck(ensemble=ensemble, before=before,
+                     after=judge(on_draws(q_compensated, nominal[1]), starts), starts=starts,
+                     again=again)
 
 
 def write_run_outputs(result: RunResult, outputs: RunOutputs,

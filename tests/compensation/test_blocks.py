@@ -84,6 +84,42 @@ def test_margins_by_hand():
     assert not blocks.whole_ok(swapped, reference)
 
 
+def test_repeatability_by_hand():
+    """The uncompensated command run again: a block's repeatability is the largest change of
+    its max over the draws (tip and orientation), and a block is worse only beyond it too."""
+    tip = np.full(N, 1e-3)
+    first = [_errors(tip), _errors(tip, np.full(N, 2e-6))]
+    second_tip = tip.copy()
+    second_tip[300:400] = 4e-3                      # block 3: 3 um higher on draw 0
+    second_ori = np.full(N, 2e-6)
+    second_ori[700:800] = 7e-6                      # block 7: 5 urad higher on draw 1
+    reference = blocks.judge(first, STARTS)
+    rerun = blocks.judge([_errors(second_tip), _errors(tip, second_ori)], STARTS)
+    widened = blocks.with_repeatability(reference, rerun)
+    expected_tip = np.zeros(10)
+    expected_tip[3] = 3e-3
+    expected_ori = np.zeros(10)
+    expected_ori[7] = 5e-6
+    np.testing.assert_allclose(widened.tip_repeatability, expected_tip, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(widened.orientation_repeatability, expected_ori, rtol=1e-12,
+                               atol=0)
+    # a command 2.5 um worse in block 3 and 4 urad in block 7, and 2.5 um in block 5: worse
+    # by the margins alone in all three, beyond the repeatability in block 5 only
+    tip_cmd = tip.copy()
+    tip_cmd[300:400] = 3.5e-3
+    tip_cmd[500:600] = 3.5e-3
+    ori_cmd = np.full(N, 2e-6)
+    ori_cmd[700:800] = 6e-6
+    command = blocks.judge([_errors(tip_cmd), _errors(tip, ori_cmd)], STARTS)
+    np.testing.assert_array_equal(np.flatnonzero(blocks.worse_blocks(command, reference)),
+                                  [3, 5, 7])
+    np.testing.assert_array_equal(np.flatnonzero(blocks.worse_blocks(command, widened)), [5])
+    # the rerun itself is not worse than the widened reference anywhere
+    assert not blocks.worse_blocks(rerun, widened).any()
+    with pytest.raises(ValueError, match="rerun has"):
+        blocks.with_repeatability(reference, blocks.judge(first[:1], STARTS))
+
+
 def test_a_block_that_hurts_falls_back_and_nothing_else_moves():
     q_ref = np.zeros((N, 5))
     q_ref[:, 0] = 1e-3                          # uncompensated: 1 um everywhere

@@ -344,3 +344,36 @@ def test_a_command_worse_in_whole_on_one_draw_is_repaired_where_it_hurts():
     for kept, reference in zip(report.kept_draws, report.uncompensated_draws):
         assert kept["tip_max_um"] <= reference["tip_max_um"]
         assert kept["tip_mean_um"] < 0.6 * reference["tip_mean_um"]
+
+
+def test_a_block_within_the_uncompensated_repeatability_is_not_worse():
+    """The machine run again (``repeat_actual``) changes the uncompensated command's error in
+    its last block by 3 um: a linear command 2 um worse there than the uncompensated command
+    is kept as it is, nowhere worse; without the rerun it falls back there. The rerun costs
+    one run of the draws, counted."""
+    n = 400
+    q_ref = np.zeros((n, 5))
+    q_ref[:, 0] = 10e-3
+    q_ref[300:, 0] = 1e-3
+    q_linear = np.zeros((n, 5))
+    q_linear[:, 0] = 1e-3
+    q_linear[300:, 0] = 3e-3
+
+    def again(q):
+        moved = q.copy()
+        moved[300:, 0] += 3e-3
+        return np.stack([q, moved])
+
+    def machine(q):
+        return np.stack([q, q])
+
+    options = dict(passes=0, settle_delays=(), line_search_steps=())
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, machine, _toy_errors,
+                               lambda q_cmd, q_act, actual: q_cmd, repeat_actual=again,
+                               **options)
+    assert q is q_linear and report.chosen == "linear" and report.fallback is None
+    assert report.machine_runs == 2 * 3
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, machine, _toy_errors,
+                               lambda q_cmd, q_act, actual: q_cmd, **options)
+    assert report.chosen == "linear, fell back in 1 block(s)"
+    assert report.fallback.blocks[0].start == pytest.approx(0.3)

@@ -100,3 +100,41 @@ def test_a_stretch_reads_the_noise_of_its_samples_in_the_whole_program(monkeypat
                                                                            + [2e-8] * 2))
     with pytest.raises(ValueError, match="start must be an integer >= 0"):
         ensemble.option(1, 10, start=-1)
+
+
+def test_a_rerun_is_the_same_machines_with_encoder_noise_drawn_afresh():
+    """``rerun()``: the friction, inertia, damping and encoder grid of every draw as they
+    were, the encoder noise new (and a function of the sample, as the draws' own: a stretch
+    reads the whole program's), draw 0 the machine file's machine still; the ensemble model
+    runs it as ``.repeat`` where the draws have noise, and has none where they do not."""
+    ensemble = MachineEnsemble(draws=3, seed=4)
+    again = ensemble.rerun()
+    assert again.repeat == 1 and again.draws == 3 and "run 1" in again.describe()
+    for draw in (1, 2):
+        first, second = ensemble.option(draw, 700), again.option(draw, 700)
+        for key in ("friction_scale", "inertia_scale", "damping_scale", "encoder_offset",
+                    "encoder_resolution"):
+            np.testing.assert_array_equal(first[key], second[key])
+        assert not np.allclose(first["encoder_noise"], second["encoder_noise"])
+        stretch = again.option(draw, 200, start=500)["encoder_noise"]
+        np.testing.assert_array_equal(stretch, second["encoder_noise"][500:])
+    assert again.option(0, 700) == {} and ensemble.rerun(2).option(1, 700)["encoder_noise"] \
+        .tolist() != second["encoder_noise"].tolist()
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="repeat must be an integer >= 1"):
+            ensemble.rerun(bad)
+    with pytest.raises(ValueError, match="repeat must be an integer >= 0"):
+        MachineEnsemble(repeat=-1)
+
+    machine = load_machine("zhang2013")
+    t = np.arange(300) * machine.servo_period
+    q = np.zeros((300, 5))
+    q[:, 0] = 1e-3 * np.sin(2 * np.pi * t)
+    model = ensemble_actual(t, machine, "pid-high", ensemble)
+    rotary = [d.is_rotary for d in machine.drives]
+    expected = [simulate(t, q, machine, "pid-high", **REALISTIC, **option).q_act
+                for option in again.options(300, rotary)]
+    np.testing.assert_array_equal(model.repeat(q), np.stack(expected))
+    assert ensemble_actual(t, machine, "pid-high",
+                           MachineEnsemble(draws=3, encoder_noise=(0, 0))).repeat is None
+    assert ensemble_actual(t, machine, "pid-high", MachineEnsemble(draws=1)).repeat is None

@@ -226,7 +226,8 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
             learning_step(traj, reference, kinematics, hold=hold), passes=learning_passes,
             progress=learning_progress, line=getattr(traj, "line", None),
             fallbacks=(("tracking-error pre-compensation", hold(q_tracking)),),
-            t0=float(t[0]), tail_errors_of=tail_errors_of)
+            t0=float(t[0]), tail_errors_of=tail_errors_of,
+            repeat_actual=getattr(machine_actual, "repeat", None))
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":

@@ -43,7 +43,7 @@ from ..errors import PrecontourError
 from ..files import check_signals
 from .blocks import (PROGRAM_MARGIN, SUMMARY_KEYS, TIE, Fallback, best,
                      block_starts, fall_back, improves, judge, not_finite, repaired_score,
-                     splice_errors, whole_ok, worse_blocks)
+                     splice_errors, whole_ok, with_repeatability, worse_blocks)
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
@@ -192,7 +192,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    progress=None, line: np.ndarray | None = None,
                    fallbacks: Sequence[tuple[str, np.ndarray]] = (), update: str = "mean",
                    local: bool = True, t0: float = 0.0,
-                   tail_errors_of=None) -> tuple[np.ndarray, LearningReport]:
+                   tail_errors_of=None, repeat_actual: MachineActual | None = None
+                   ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
     Every decision (which step of a line search to continue from, which command to keep) is
@@ -253,6 +254,11 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         samples ``first`` on (identical to those samples of ``errors_of`` of the whole). With
         it, a settled tail's errors are computed only from where its motion parts from its
         iterate's.
+    repeat_actual : callable, optional
+        The machine model's draws run again (their encoder noise re-drawn; what
+        :func:`~precontour.simulation.ensemble_actual` gives as ``.repeat``): the uncompensated
+        command is run on it once, and each block's margin is at least how much its errors
+        changed (:func:`~.blocks.with_repeatability`).
 
     Returns
     -------
@@ -331,6 +337,13 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     if not reference.finite:
         raise ValueError("the machine model's motion of the uncompensated command is not "
                          "finite")
+    if repeat_actual is not None:
+        again = np.asarray(repeat_actual(q_reference), dtype=float)
+        again = again[None] if again.ndim == 2 else again
+        runs += again.shape[0]
+        if np.all(np.isfinite(again)):
+            reference = with_repeatability(reference, judge((errors_of(m) for m in again),
+                                                            starts))
     entries = []    # (candidate, q, judgement)
 
     def judged_safely(q, like=None):

@@ -344,7 +344,8 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           progress=progress, line=line,
                           fallbacks=(("tracking-error pre-compensation", tracking),),
                           t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
-                          settle_delays=settle_delays)
+                          settle_delays=settle_delays,
+                          repeat_actual=getattr(machine_actual, "repeat", None))
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):

@@ -15,7 +15,7 @@ draw (D, N, 5) out (:func:`ensemble_actual`), for compensation to take its decis
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
@@ -81,6 +81,13 @@ class MachineEnsemble:
         Seed of the draws: the same seed gives the same machines.
     nominal : bool
         Whether draw 0 is the unperturbed machine.
+    repeat : int
+        Which run of these machines: 0, the draws' own encoder noise; k > 0, the same machines
+        (friction, inertia, damping, encoder grid) read through encoder noise drawn afresh,
+        from generators seeded (seed, draw, block, k) (:meth:`rerun`). Why: where an axis
+        rests under friction with a quantised encoder, a machine does not repeat itself, and
+        how much one source line's error changes when the same machine runs the same command
+        again bounds what any comparison of two commands there can tell (issue 21).
     """
 
     draws: int = 5
@@ -91,6 +98,7 @@ class MachineEnsemble:
     encoder_noise: tuple[float, float] = (2e-6, 2e-8)
     seed: int = 0
     nominal: bool = True
+    repeat: int = 0
 
     def __post_init__(self):
         if not is_whole_number(self.draws) or self.draws < 1:
@@ -107,9 +115,23 @@ class MachineEnsemble:
                 raise ValueError(f"{name} must be two finite numbers >= 0 (linear mm, rotary "
                                  f"rad), got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(v) for v in value))
-        if not is_whole_number(self.seed) or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        for name in ("seed", "repeat"):
+            value = getattr(self, name)
+            if not is_whole_number(value) or value < 0:
+                raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+            object.__setattr__(self, name, int(value))
         object.__setattr__(self, "draws", int(self.draws))
+
+    @property
+    def noisy(self) -> bool:
+        """Whether any draw reads through encoder noise (else a rerun is the same run)."""
+        return self.draws > (1 if self.nominal else 0) and any(self.encoder_noise)
+
+    def rerun(self, repeat: int = 1) -> "MachineEnsemble":
+        """The same machines run again: run ``repeat`` (> 0) of their encoder noise."""
+        if not is_whole_number(repeat) or repeat < 1:
+            raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
+        return replace(self, repeat=int(repeat))
 
     def options(self, n_samples: int, rotary=(False, False, False, True, True), *,
                 start: int = 0) -> list[dict]:
@@ -159,7 +181,10 @@ class MachineEnsemble:
         # (the block holding ``start`` at least, so that no samples give shape (0, 5))
         for block in range(start // NOISE_BLOCK, max(stop - 1, start) // NOISE_BLOCK + 1):
             first = block * NOISE_BLOCK
-            source = rng if block == 0 else np.random.default_rng([self.seed, draw, block])
+            if self.repeat:
+                source = np.random.default_rng([self.seed, draw, block, self.repeat])
+            else:
+                source = rng if block == 0 else np.random.default_rng([self.seed, draw, block])
             # a generator's normals come in order: the block's first rows are what a longer
             # stretch of it would start with
             rows = source.standard_normal((min(NOISE_BLOCK, stop - first), 5))
@@ -178,7 +203,8 @@ class MachineEnsemble:
         if any(self.encoder_noise):
             parts.append(f"noise {1e6 * self.encoder_noise[0]:g} nm / "
                          f"{1e6 * self.encoder_noise[1]:g} urad rms")
-        return ", ".join(parts) + f", seed {self.seed}"
+        return ", ".join(parts) + f", seed {self.seed}" + (f", run {self.repeat}" if self.repeat
+                                                            else "")
 
 
 def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | str,
@@ -197,4 +223,12 @@ def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | st
         return simulate_draws(t, q, machine, controller, options, **REALISTIC)
 
     actual.ensemble = ensemble
+    # the same machines run again (their encoder noise re-drawn), for the repeatability of
+    # the uncompensated command's errors (compensation.blocks.with_repeatability); None where
+    # a rerun is the same run
+    def repeat(q: np.ndarray) -> np.ndarray:
+        # built when called: its encoder noise is in memory only while it runs
+        return ensemble_actual(t, machine, controller, ensemble.rerun(), start=start)(q)
+
+    actual.repeat = repeat if ensemble.noisy and not ensemble.repeat else None
     return actual
