@@ -429,30 +429,33 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     kept = accepted[best([entry[2] for entry in accepted])]
     fallback = None
     fallback_runs = 0
-    # Every finite command within the limits may be repaired, not only those nowhere worse
-    # in whole: a command worse on one draw's whole max is worse there in some block, which
-    # the fallback mends like any other (on LinuxCNC's boat, a segment whose linear command
-    # was worse on one draw's max kept the uncompensated command with no fallback tried).
-    repairable = [entry for entry in entries
-                  if entry[0].repairable and entry[1] is not q_reference]
-    repair_ranks = np.array([repaired_score(entry[2], reference) for entry in repairable])
-    if local and (not kept[0].blocks_ok or kept[1] is q_reference) and repairable:
+    # Besides the admissible commands, every finite command within the limits that is worse
+    # in whole on some draw may be repaired: that is worse there in some block, which the
+    # fallback mends like any other (on LinuxCNC's boat, a segment whose linear command was
+    # worse on one draw's max kept the uncompensated command with no fallback tried). They
+    # are ranked by their estimated mended worst draw (blocks.repaired_score) and tried after
+    # the admissible ones.
+    unadmitted = [entry for entry in entries if entry[0].repairable and not entry[0].accepted]
+    if local and (not kept[0].blocks_ok or (kept[1] is q_reference and unadmitted)):
         # The best candidates that hurt somewhere fall back there; the best of them is kept
         # if it beats the best candidate that needed no fallback. Several are tried because
         # where a fallback lands (a stop, the final dwell) decides what it costs.
         safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
-        order = [i for i in np.argsort(repair_ranks, kind="stable")
-                 if repair_ranks[i] <= safe_rank * (1.0 + TIE)
-                 and not repairable[i][0].blocks_ok]
+        order = [accepted[i] for i in np.argsort(ranks, kind="stable")
+                 if ranks[i] <= safe_rank * (1.0 + TIE)
+                 and not accepted[i][0].blocks_ok][:REPAIRED_CANDIDATES]
+        estimates = np.array([repaired_score(entry[2], reference) for entry in unadmitted])
+        order += [unadmitted[i] for i in np.argsort(estimates, kind="stable")
+                  if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
                   if accepted[i][1] is not q_reference]
 
-        def repair(i, alternatives=(), program_margin=0.0):
-            """Candidate ``i`` of the repairable ones fallen back where it hurts
-            (:func:`~.blocks.fall_back`): its entry and the report, or None where only the
-            planned command everywhere would do, or where it no longer improves on the
-            uncompensated command (:func:`~.blocks.improves`)."""
-            candidate, q_try, judged_try = repairable[i]
+        def repair(entry, alternatives=(), program_margin=0.0):
+            """``entry`` fallen back where it hurts (:func:`~.blocks.fall_back`): its entry
+            and the report, or None where only the planned command everywhere would do, or
+            where it no longer improves on the uncompensated command
+            (:func:`~.blocks.improves`)."""
+            candidate, q_try, judged_try = entry
             q_fixed, judged, report_try = fall_back(
                 q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
                 starts, ts, alternatives=alternatives, fallbacks=fallbacks,
@@ -465,11 +468,10 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
 
         repaired = []
         runs_before = runs
-        for i in order[:REPAIRED_CANDIDATES]:
-            q_try = repairable[i][1]
+        for entry in order:
             alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
-                            if q_alt is not q_try][:ALTERNATIVES]
-            fixed = repair(i, alternatives)
+                            if q_alt is not entry[1]][:ALTERNATIVES]
+            fixed = repair(entry, alternatives)
             if fixed is not None:
                 repaired.append(fixed)
         pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
@@ -481,8 +483,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             # fallback's blend on a curved path can itself leave the neighbours a few % worse)
             loose = [entry for entry in accepted if entry[1] is not q_reference
                      and not worse_blocks(entry[2], reference, PROGRAM_MARGIN).any()]
-            for i in ([] if loose else order[:REPAIRED_CANDIDATES]):
-                fixed = repair(i, program_margin=PROGRAM_MARGIN)
+            for entry in ([] if loose else order):
+                fixed = repair(entry, program_margin=PROGRAM_MARGIN)
                 if fixed is not None:
                     loose.append(fixed[0])
                     repaired.append(fixed)
