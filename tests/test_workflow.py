@@ -487,6 +487,15 @@ def test_run_checks_both_commands_on_the_draws_of_the_machine(tmp_path):
     hurts_beyond = np.flatnonzero((worst["after"] > np.maximum(
         bound, worst["before"] + repeatability)).any(axis=1))
     np.testing.assert_array_equal(check.worse_blocks(), hurts_beyond)
+    worst_again = np.array([[max(e.tip[line == n].max() for e in again),
+                             max(e.orientation[line == n].max() for e in again)]
+                            for n in numbers])
+    np.testing.assert_array_equal(check.self_worse_blocks(),
+                                  np.flatnonzero((worst_again > bound).any(axis=1)))
+    assert (f"a line's max changed by up to {1e3 * repeatability[:, 0].max():.3g} um / "
+            f"{1e6 * repeatability[:, 1].max():.3g} urad, worse than itself beyond "
+            f"0.1 um / 1 urad or 5 % on {check.self_worse_blocks().size} line(s)"
+            in result.table())
     reductions = check.reductions("tip_max")
     assert reductions.shape == (3,)     # measured 0.65, 0.65 and 0.32: one draw is far worse
     assert reductions[0] == pytest.approx(

@@ -326,7 +326,8 @@ class RunResult:
                          f"mean {_reduction(before.mean(), after.mean())}")
         if self.draws is not None:
             lines += self.draws.table("line" if toolpath_format(self.source) == "gcode"
-                                      else "row")
+                                      else "row",
+                                      learned=self.limited.result.learning is not None)
         lines.append("largest simulated errors, where:")
         lines += ["  " + largest.format() for largest in self.largest_errors()]
         worse = self.worse_lines()
@@ -591,18 +592,18 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     timings["virtual machine (both)"] = time.perf_counter() - start
     checked = None
     if draws > 1:
+        check_ensemble = replace(learning_ensemble, draws=draws)
+        twice = check_ensemble.noisy and not check_ensemble.repeat
         step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
-                "(twice: its repeatability) and compensated")
+                + ("(twice: its repeatability) " if twice else "") + "and compensated")
         start = time.perf_counter()
         checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
                                  controller, simulated, line=limited.line,
-                                 ensemble=replace(learning_ensemble, draws=draws))
+                                 ensemble=check_ensemble)
         timings["virtual machine (draws)"] = time.perf_counter() - start
         worse = checked.worse_in_whole()
         if worse:
-            notice(f"the compensated program's {' and '.join(worse)} on its worst draw is "
-                   "above the uncompensated program's (friction at a stop or reversal; see "
-                   "the table): --learn N keeps a command that is nowhere worse on the draws")
+            notice(worse_in_whole_message(worse, learned=limited.result.learning is not None))
 
     step(3, "write G-code")
     start = time.perf_counter()
@@ -794,8 +795,7 @@ class DrawCheck:
         """:meth:`worse_blocks` by the block margins alone."""
         from .compensation.blocks import worse_blocks
 
-        return np.flatnonzero(worse_blocks(self.after, replace(
-            self.before, tip_repeatability=None, orientation_repeatability=None)))
+        return np.flatnonzero(worse_blocks(self.after, self.before.without_repeatability()))
 
     def self_worse_blocks(self) -> np.ndarray:
         """Indices of the blocks where the uncompensated commands run again are worse than
@@ -805,27 +805,29 @@ class DrawCheck:
 
         if self.again is None:
             return np.zeros(0, dtype=int)
-        return np.flatnonzero(worse_blocks(self.again, replace(
-            self.before, tip_repeatability=None, orientation_repeatability=None)))
+        return np.flatnonzero(worse_blocks(self.again, self.before.without_repeatability()))
 
     def worse_in_whole(self) -> tuple[str, ...]:
         """The quantities (``tip max``, ``orientation max``) whose worst draw is above the
-        uncompensated commands' worst draw by more than the block margins: the compensated
-        program is worse where it is worst."""
-        from .compensation.blocks import (ORIENTATION_MARGIN, RELATIVE_MARGIN, TIP_MARGIN)
+        uncompensated commands' worst draw, over both their runs where they ran twice, by more
+        than the block margins (or not finite): the compensated program is worse where it is
+        worst, and not by the machine's scatter from run to run."""
+        from .compensation.blocks import ORIENTATION_MARGIN, TIP_MARGIN, margin_bound
 
+        runs = [self.before] + ([self.again] if self.again is not None else [])
         worse = []
-        for label, key, margin, unit in (("tip max", "tip_max_um", TIP_MARGIN, 1e3),
-                                         ("orientation max", "ori_max_mrad",
-                                          ORIENTATION_MARGIN, 1e3)):
-            before = max(s[key] for s in self.before.summaries)
+        for label, key, margin in (("tip max", "tip_max_um", 1e3 * TIP_MARGIN),
+                                   ("orientation max", "ori_max_mrad",
+                                    1e3 * ORIENTATION_MARGIN)):   # um and mrad
+            before = max(s[key] for judged in runs for s in judged.summaries)
             after = max(s[key] for s in self.after.summaries)
-            if after > before + max(margin * unit, RELATIVE_MARGIN * before):
+            if not after <= margin_bound(before, margin):
                 worse.append(label)
         return tuple(worse)
 
-    def table(self, where: str = "line") -> list[str]:
-        """Lines of the end-of-run table: median and worst over the draws."""
+    def table(self, where: str = "line", learned: bool = False) -> list[str]:
+        """Lines of the end-of-run table: median and worst over the draws (``learned``: the
+        commands were learned, for the warning's advice)."""
         lines = [f"on {self.ensemble.describe()}:"]
         keys = ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad")
         for commands, judged in (("uncompensated", self.before), ("compensated", self.after)):
@@ -840,29 +842,40 @@ class DrawCheck:
             lines.append(f"  {label} reduction, median / worst draw: max "
                          f"{np.median(r_max):.1f} / {r_max.min():.1f} %, mean "
                          f"{np.median(r_mean):.1f} / {r_mean.min():.1f} %")
-        if self.again is not None:
+        from .compensation.blocks import MARGINS
+
+        repeatable = self.before.tip_repeatability is not None
+        if repeatable:
             tip = 1e3 * float(np.max(self.before.tip_repeatability, initial=0.0))
             ori = 1e6 * float(np.max(self.before.orientation_repeatability, initial=0.0))
             lines.append(f"  uncompensated run again on the same machines (encoder noise "
                          f"re-drawn): a {where}'s max changed by up to {tip:.3g} um / "
-                         f"{ori:.3g} urad, worse than itself beyond 0.1 um / 1 urad or 5 % on "
+                         f"{ori:.3g} urad, worse than itself beyond {MARGINS} on "
                          f"{self.self_worse_blocks().size} {where}(s)")
         worse = self.worse_blocks().size
-        margins = ("beyond 0.1 um / 1 urad or 5 %"
-                   + (f" and the {where}'s repeatability" if self.again is not None else ""))
+        margins = f"beyond {MARGINS}" + (f" and the {where}'s repeatability" if repeatable
+                                         else "")
         plain = self.worse_blocks_without_repeatability().size
         lines.append(f"  compensated worse than uncompensated (worst draw against worst draw, "
                      f"{margins}) on {worse} {where}(s)"
                      + (f" ({plain} by the margins alone)" if plain != worse else "")
                      if worse or plain else
                      f"  compensated nowhere worse than uncompensated on the worst draw "
-                     f"(0.1 um / 1 urad or 5 % per {where})")
-        for quantity in self.worse_in_whole():
-            lines.append(f"  warning: the compensated program's {quantity} on its worst draw "
-                         f"is above the uncompensated program's (friction at a stop or "
-                         f"reversal): --learn N keeps a command that is nowhere worse on "
-                         f"the draws")
+                     f"({MARGINS} per {where})")
+        worse_in_whole = self.worse_in_whole()
+        if worse_in_whole:
+            lines.append("  warning: " + worse_in_whole_message(worse_in_whole, learned))
         return lines
+
+
+def worse_in_whole_message(quantities: Sequence[str], learned: bool = False) -> str:
+    """The warning where the compensated program's worst draw is worse where it is worst
+    (:meth:`DrawCheck.worse_in_whole`)."""
+    return (f"the compensated program's {' and '.join(quantities)} on its worst draw is above "
+            "the uncompensated program's (friction at a stop or reversal)"
+            + (": the draws differ from those learning decided on (--draws, the learning "
+               "controller)" if learned else
+               ": --learn N keeps a command that is nowhere worse on the draws"))
 
 
 def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj: Machine,
@@ -891,7 +904,7 @@ def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj
 
     before = judge(on_draws(reference.q, nominal[0]), starts)
     again = None
-    if ensemble.noisy:
+    if ensemble.noisy and not ensemble.repeat:
         again = judge(on_draws(reference.q, nominal[0], ensemble.rerun()), starts)
         before = with_repeatability(before, again)
     return DrawCheck(ensemble=ensemble, before=before,

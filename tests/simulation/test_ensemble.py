@@ -138,3 +138,6 @@ def test_a_rerun_is_the_same_machines_with_encoder_noise_drawn_afresh():
     assert ensemble_actual(t, machine, "pid-high",
                            MachineEnsemble(draws=3, encoder_noise=(0, 0))).repeat is None
     assert ensemble_actual(t, machine, "pid-high", MachineEnsemble(draws=1)).repeat is None
+    assert ensemble_actual(t, machine, "pid-high",
+                           MachineEnsemble(draws=1, nominal=False)).repeat is not None
+    assert ensemble_actual(t, machine, "pid-high", again).repeat is None

@@ -73,6 +73,16 @@ TIE = 0.05
 FALLBACK_ROUNDS = 4
 
 SUMMARY_KEYS = ("tip_max_um", "tip_mean_um", "ori_max_mrad", "ori_mean_mrad")
+#: The block margins in words, for tables and messages.
+MARGINS = (f"{1e3 * TIP_MARGIN:g} um / {1e6 * ORIENTATION_MARGIN:g} urad or "
+           f"{100 * RELATIVE_MARGIN:g} %")
+
+
+def margin_bound(reference, absolute: float):
+    """The largest value within the block margins of ``reference`` (an error, or an array of
+    them): ``reference`` plus ``absolute`` (:data:`TIP_MARGIN` or :data:`ORIENTATION_MARGIN`,
+    in the unit of ``reference``) or :data:`RELATIVE_MARGIN` of it, whichever is larger."""
+    return reference + np.maximum(absolute, RELATIVE_MARGIN * reference)
 
 
 def block_starts(n_samples: int, ts: float, line: np.ndarray | None = None,
@@ -128,6 +138,10 @@ class Judgement:
     def median(self) -> dict:
         """Per key, the median over the draws."""
         return {key: float(np.median([s[key] for s in self.summaries])) for key in SUMMARY_KEYS}
+
+    def without_repeatability(self) -> "Judgement":
+        """This judgement judged by the block margins alone."""
+        return replace(self, tip_repeatability=None, orientation_repeatability=None)
 
     @property
     def score(self) -> float:
@@ -244,10 +258,10 @@ def worse_blocks(judged: Judgement, reference: Judgement, program_margin: float 
         return np.ones(reference.tip_max.shape[1], dtype=bool)
     tip_ref = reference.tip_max.max(axis=0)
     ori_ref = reference.orientation_max.max(axis=0)
-    tip_bound = tip_ref + np.maximum(np.maximum(TIP_MARGIN, RELATIVE_MARGIN * tip_ref),
-                                     program_margin * tip_ref.max())
-    ori_bound = ori_ref + np.maximum(np.maximum(ORIENTATION_MARGIN, RELATIVE_MARGIN * ori_ref),
-                                     program_margin * ori_ref.max())
+    tip_bound = np.maximum(margin_bound(tip_ref, TIP_MARGIN),
+                           tip_ref + program_margin * tip_ref.max())
+    ori_bound = np.maximum(margin_bound(ori_ref, ORIENTATION_MARGIN),
+                           ori_ref + program_margin * ori_ref.max())
     if reference.tip_repeatability is not None:
         # (1 + 1e-12): the rerun itself is within its own repeatability, also after round-off
         tip_bound = np.maximum(tip_bound, (tip_ref + reference.tip_repeatability)

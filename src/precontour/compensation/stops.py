@@ -25,9 +25,12 @@ ensemble of draws of the machine (:func:`precontour.simulation.ensemble_actual`)
 choice is taken on all of them (:mod:`.blocks`): an update learns from the draws' mean motion,
 the line search continues from the step whose worst draw is best, and the command kept is the
 one whose worst draw is best among those nowhere worse than the uncompensated command on every
-draw (max and mean, tip and orientation), and block by block: where the best ones hurt in a
-block, they fall back there (C2, to another candidate that does not hurt there, to
-tracking-error pre-compensation, or to the planned command), and the report says where and why.
+draw (max and mean, tip and orientation), and block by block (beyond the margins and the
+uncompensated command's repeatability, :func:`~.blocks.with_repeatability`): where the best ones
+hurt in a block, or are worse in whole on a draw because of some blocks, they fall back there
+(C2, to another candidate that does not hurt there, to tracking-error pre-compensation, or to
+the planned command) and are kept only where they still improve on the uncompensated command,
+and the report says where and why.
 """
 
 from __future__ import annotations
@@ -82,9 +85,11 @@ LINE_SEARCH_STEPS: tuple[float, ...] = (0.5, 1.0)
 #: and learning still removed 89.0 % of the max tip error on `fan25` and 98.7 % on `paper`
 #: (linear pass 72.6 and 88.2 %).
 LIMITED_SMOOTHING = 0.003
-#: Candidates (the best by their worst draw among those that hurt somewhere block by block)
-#: that :func:`learn_at_stops` makes fall back locally, each at up to
-#: :data:`~.blocks.FALLBACK_ROUNDS` judgements on the machine model.
+#: Candidates that :func:`learn_at_stops` makes fall back locally, in each of two groups: the
+#: admissible ones that hurt somewhere block by block (the best by their worst draw), then
+#: those worse in whole on some draw (the best by their estimated mended worst draw,
+#: :func:`~.blocks.repaired_score`); each at up to :data:`~.blocks.FALLBACK_ROUNDS`
+#: judgements on the machine model.
 REPAIRED_CANDIDATES = 3
 #: Other candidates (the best by their worst draw) a block may fall back to first, where one
 #: is nowhere worse there (:func:`~.blocks.fall_back`; choosing costs no machine run).
@@ -201,8 +206,12 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     every draw, its max and mean errors (tip and orientation) do not exceed the uncompensated
     command's there, and the command kept is the admissible one whose worst draw is best.
     With ``local``, the command kept is also nowhere worse block by block: where the best
-    admissible command is not, it falls back locally (:func:`~.blocks.fall_back`) and is kept
-    if it stays better than the best candidate that needed no fallback.
+    admissible command is not, it falls back locally (:func:`~.blocks.fall_back`), and so do
+    the best commands worse in whole on some draw (finite and within the limits); a mended
+    command is kept if it stays better than the best candidate that needed no fallback and
+    improves on the uncompensated command by more than :data:`~.blocks.TIE`
+    (:func:`~.blocks.improves`). Each block's margin is at least the uncompensated command's
+    repeatability there where ``repeat_actual`` is given.
 
     Parameters
     ----------
@@ -276,13 +285,13 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     runs = 0
     draws = 0
 
-    def run(q):
+    def run(q, model=machine_actual):
         """The machine model's actual motions of ``q``, shape (D, N, 5), or None when ``q``
         or a motion is not finite (a diverging update is simply not kept)."""
         nonlocal runs, draws
         if not np.all(np.isfinite(q)):
             return None
-        motion = np.asarray(machine_actual(q), dtype=float)
+        motion = np.asarray(model(q), dtype=float)
         if motion.ndim == 2:
             motion = motion[None]
         runs += motion.shape[0]
@@ -337,13 +346,9 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     if not reference.finite:
         raise ValueError("the machine model's motion of the uncompensated command is not "
                          "finite")
-    if repeat_actual is not None:
-        again = np.asarray(repeat_actual(q_reference), dtype=float)
-        again = again[None] if again.ndim == 2 else again
-        runs += again.shape[0]
-        if np.all(np.isfinite(again)):
-            reference = with_repeatability(reference, judge((errors_of(m) for m in again),
-                                                            starts))
+    again = None if repeat_actual is None or not local else run(q_reference, repeat_actual)
+    if again is not None:
+        reference = with_repeatability(reference, judge((errors_of(m) for m in again), starts))
     entries = []    # (candidate, q, judgement)
 
     def judged_safely(q, like=None):
