@@ -324,23 +324,22 @@ class RunResult:
                                       self.simulated_after.orientation)):
             lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
                          f"mean {_reduction(before.mean(), after.mean())}")
+        from .compensation.blocks import MARGINS
+
+        where = "line" if toolpath_format(self.source) == "gcode" else "row"
         if self.draws is not None:
-            lines += self.draws.table("line" if toolpath_format(self.source) == "gcode"
-                                      else "row",
-                                      learned=self.limited.result.learning is not None)
+            lines += self.draws.table(where, learned=self.limited.result.learning is not None)
         lines.append("largest simulated errors, where:")
         lines += ["  " + largest.format() for largest in self.largest_errors()]
         worse = self.worse_lines()
-        where = "line" if toolpath_format(self.source) == "gcode" else "row"
         if worse:
             lines.append(f"compensated worse than uncompensated on {len(worse)} {where}(s) "
-                         "(beyond 0.1 um / 1 urad or 5 %), simulated, largest first:")
+                         f"(beyond {MARGINS}), simulated, largest first:")
             lines += ["  " + w.format(where) for w in worse[:5]]
             if len(worse) > 5:
                 lines.append(f"  ... and {len(worse) - 5} more")
         else:
-            lines.append(f"no {where} worse than uncompensated (beyond 0.1 um / 1 urad or "
-                         "5 %), simulated")
+            lines.append(f"no {where} worse than uncompensated (beyond {MARGINS}), simulated")
         duration = self.commands.duration
         planned = self.planned.duration
         slow = self.limited.slowdowns
@@ -593,9 +592,9 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     checked = None
     if draws > 1:
         check_ensemble = replace(learning_ensemble, draws=draws)
-        twice = check_ensemble.noisy and not check_ensemble.repeat
         step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
-                + ("(twice: its repeatability) " if twice else "") + "and compensated")
+                + ("(twice: its repeatability) " if check_ensemble.rerun_differs else "")
+                + "and compensated")
         start = time.perf_counter()
         checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
                                  controller, simulated, line=limited.line,
@@ -904,7 +903,7 @@ def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj
 
     before = judge(on_draws(reference.q, nominal[0]), starts)
     again = None
-    if ensemble.noisy and not ensemble.repeat:
+    if ensemble.rerun_differs:
         again = judge(on_draws(reference.q, nominal[0], ensemble.rerun()), starts)
         before = with_repeatability(before, again)
     return DrawCheck(ensemble=ensemble, before=before,

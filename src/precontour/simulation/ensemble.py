@@ -123,9 +123,11 @@ class MachineEnsemble:
         object.__setattr__(self, "draws", int(self.draws))
 
     @property
-    def noisy(self) -> bool:
-        """Whether any draw reads through encoder noise (else a rerun is the same run)."""
-        return self.draws > (1 if self.nominal else 0) and any(self.encoder_noise)
+    def rerun_differs(self) -> bool:
+        """Whether :meth:`rerun` is another run: some draw reads through encoder noise, and
+        this is not itself a rerun (whose rerun would be the same run)."""
+        return (self.draws > (1 if self.nominal else 0) and any(self.encoder_noise)
+                and not self.repeat)
 
     def rerun(self, repeat: int = 1) -> "MachineEnsemble":
         """The same machines run again: run ``repeat`` (> 0) of their encoder noise."""
@@ -230,5 +232,5 @@ def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | st
         # built when called: its encoder noise is in memory only while it runs
         return ensemble_actual(t, machine, controller, ensemble.rerun(), start=start)(q)
 
-    actual.repeat = repeat if ensemble.noisy and not ensemble.repeat else None
+    actual.repeat = repeat if ensemble.rerun_differs else None
     return actual
