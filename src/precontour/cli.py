@@ -790,7 +790,7 @@ def run_compensate(args: argparse.Namespace) -> int:
                           tol_rotary=args.tol_rotary, progress=progress,
                           learning_progress=learning_progress)
     if comp.within_limits:
-        print(f"within the machine's limits: "
+        print("within the machine's limits: "
               + (f"slowed in {len(comp.slowdowns)} window(s), +{comp.added_time:.3f} s, down "
                  f"to {100 * min(s.speed for s in comp.slowdowns):.1f} % of the speed"
                  if comp.slowdowns else "not slowed"))

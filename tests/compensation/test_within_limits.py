@@ -146,7 +146,7 @@ def test_splicing_matches_compensating_everything_again(machine, circle):
 
 
 def test_taper_leaves_the_correction_out_where_it_breaks_a_limit_and_is_smooth():
-    from precontour.compensation.within_limits import TAPER_HOLD, taper_corrections
+    from precontour.compensation.blend import TAPER_HOLD, taper_corrections
 
     ts = 1e-3
     n = 4000

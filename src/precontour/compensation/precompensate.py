@@ -23,7 +23,7 @@ from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from ..defaults import COMPENSATION_METHODS as METHODS
 from ..defaults import COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY
 from ..files import check_signals
-from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
+from ..prediction.contour import ContourErrors, ReferencePath
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking

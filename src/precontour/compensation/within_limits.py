@@ -31,7 +31,7 @@ from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
 from ..trajectory.retime import Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
-from .blend import TAPER_HOLD, TAPER_WIDTH, taper_corrections
+from .blend import taper_corrections
 from .idle_axes import hold_idle_axes
 from .pieces import compensate_program, predict_program
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
@@ -203,7 +203,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         retimed = retime(current, stretch, line=current_line)
         floored = floored[np.clip(np.rint(retimed.old_index).astype(int), 0, floored.size - 1)]
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
-        previous, current, current_line = current, retimed.trajectory, retimed.line
+        current, current_line = retimed.trajectory, retimed.line
         if progress is not None:
             progress(round_ + 1, f"compensate again ({current.n_samples} samples, "
                                  f"{len(retimed.slowdowns)} slowed window(s))")

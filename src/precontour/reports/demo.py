@@ -11,19 +11,16 @@ writes them.
 
 from __future__ import annotations
 
-import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, TextIO
+from typing import Mapping
 
 import numpy as np
 
 from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
-from ..machine.drives import LinearErrorModel
 from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine

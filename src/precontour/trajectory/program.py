@@ -146,7 +146,6 @@ def program_trajectory(program, machine, *, ts: float | None = None,
     dq = np.diff(points, axis=0)
     durations = _nominal_durations(program, dq, limits[0])
 
-    n_moves = program.n_moves
     holds = _holds(program, dwell, ts)
     bounds = _segment_bounds(program)
     _check_estimate(program, durations, holds, bounds, ts, max_samples)
