@@ -86,7 +86,8 @@ def paths_section(folder: Path) -> str:
         "and the largest errors on the realistic virtual machine, at each sample the worst of "
         "its 5 draws (friction, J, B, encoder) where the search got that far. *Not met*: "
         "somewhere the tolerance is missed even at the lowest feed (5 % of the programmed), "
-        "or at a stop, which slowing down cannot help (`--learn` can: "
+        "where slowing down did not lower the error (the search stops slowing there), or at "
+        "a stop, which slowing down cannot help (`--learn` can: "
         "[run](run.md#faster-within-a-tolerance---tolerance)). Where the uncompensated "
         "program keeps the tolerance at the upper-bound feed already, the compensated one can "
         "be longer: its corrections are slowed to keep the axis limits (a negative gain).", "",

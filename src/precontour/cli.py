@@ -427,8 +427,9 @@ def _add_run_command(commands) -> None:
                           "smoothly, and the fastest uncompensated motion with the same "
                           "retiming (the baseline); print the cycle times as programmed, "
                           "of the baseline and compensated, and the errors of each. Where "
-                          "even the lowest feed misses it, say where and exit with an error "
-                          "(see --write-anyway)")
+                          "even the lowest feed misses it, or slowing down does not lower the "
+                          "error (friction where an axis stops or creeps: not slowed further), "
+                          "say where and exit with an error (see --write-anyway)")
     run.add_argument("--feed-scale-max", type=_positive_float, default=DEFAULT_FEED_SCALE_MAX,
                      metavar="K",
                      help="with --tolerance: the highest feed, K times the programmed feed "

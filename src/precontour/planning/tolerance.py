@@ -72,6 +72,14 @@ RETIME_MARGIN = 0.9
 #: The whole-sample rounding of a slowed window adds up to one sample: the floor is aimed
 #: this far inside.
 _FLOOR_MARGIN = 0.98
+#: A source line whose largest error did not fall although the speed at it fell by at least
+#: this factor since the previous round in which it was over the tolerance is not slowed
+#: further: its error is not the speed's. A lag's contour error falls about like the square of
+#: the speed (the module docstring); one that does not fall at all is friction's, where an
+#: axis stops, reverses or creeps (on LinuxCNC's impeller, uncompensated, 45 places stayed up
+#: to 9 times over 5 um at 5 % of the programmed feed, the lowest allowed). Slowing there only
+#: lengthens the program, and a slower creep sticks and slips no less.
+FUTILE_SLOWING = 1.5
 
 
 @dataclass(frozen=True)
@@ -125,7 +133,8 @@ class ToleranceMiss:
     speed there as a fraction of the upper-bound plan's; ``floor``: whether that is the
     search's lowest speed (slower is not allowed) rather than a search that ran out of
     rounds; ``at_rest``: the sample is at rest (a stop, the final dwell), where slowing
-    down does not help."""
+    down does not help; ``futile``: its line was slowed and its error did not fall with the
+    speed (:data:`FUTILE_SLOWING`), so the search stopped slowing it."""
 
     time: float
     index: int
@@ -137,6 +146,7 @@ class ToleranceMiss:
     floor: bool
     where: str = "line"
     at_rest: bool = False
+    futile: bool = False
 
     def format(self) -> str:
         """``line 57, t = 1.234 s: tip error 12.3 um, 23.0 % over 10 um, at 5.0 % speed``."""
@@ -144,7 +154,8 @@ class ToleranceMiss:
         at = f"{self.where} {self.line}, " if self.line is not None else ""
         how = ("at rest (a stop: slowing down does not help)" if self.at_rest else
                f"at {100 * self.speed:.1f} % of the planned speed"
-               + (" (the lowest allowed)" if self.floor else ""))
+               + (" (slowing down did not lower it)" if self.futile else
+                  " (the lowest allowed)" if self.floor else ""))
         return (f"{at}t = {self.time:.3f} s: {self.quantity} error {scale * self.error:.4g} "
                 f"{unit}, {100 * (self.error / self.limit - 1):.1f} % over "
                 f"{scale * self.limit:g} {unit}, {how}")
@@ -380,6 +391,10 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     on_ensemble = False
     machine_runs = 0
     limited = None
+    # per source line: its largest ratio and lowest speed in the last round it was over the
+    # tolerance; the lines whose error did not fall with the speed (FUTILE_SLOWING)
+    last_over: dict[int, tuple[float, float]] = {}
+    futile_lines: set[int] = set()
     for round_ in range(1, max_rounds + 1):
         if compensate:
             if progress is not None:
@@ -420,21 +435,25 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             over = ratio > 1.0
         speed = _speed(index)
         room = _FLOOR_MARGIN * speed / min_speed
+        moves = moving(current)
+        if current_line is not None and over.any():
+            futile_lines |= _futile_lines(current_line, ratio, speed, moves, last_over)
+        futile = (np.isin(current_line, np.fromiter(futile_lines, dtype=np.int64))
+                  if futile_lines else np.zeros(current.n_samples, dtype=bool))
         if not over.any() or round_ == max_rounds:
             break
         # every sample above the aim, not only those over the tolerance: slowing one window
         # raises the errors next to it a little, and on a wide plateau of errors near the
         # tolerance slowing only the samples over it crept along it by a window per round
         # (paper / pid-low, 10 um uncompensated: not met after 12 rounds)
-        above = ratio > aim
+        above = (ratio > aim) & ~futile
         want = np.where(above, (ratio / aim) ** (1.0 / exponent), 1.0)
         # Samples at rest are not slowed: a longer stop does not lower the error of settling
         # under friction, and a stretched stop only lengthens the program. What a sample at
         # rest asks for goes to the moving samples within SPREAD_TIME of it: the approach.
         reach = 2 * max(1, int(round(SPREAD_TIME / current.ts))) + 1
-        moves = moving(current)
         want = np.maximum(want, maximum_filter1d(np.where(moves, 1.0, want), reach))
-        slowable = moves & (room > 1.0 + CHECK_RTOL)
+        slowable = moves & ~futile & (room > 1.0 + CHECK_RTOL)
         stretch = np.where(slowable, np.minimum(want, room), 1.0)
         if not (over & (maximum_filter1d(stretch, reach) > 1.0)).any():
             break               # no sample over the tolerance can be slowed any more
@@ -447,12 +466,36 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             current, current_line, index = _keep_limits(current, current_line, index, limits)
     commands = limited.result.trajectory if compensate else current
     misses = _misses(current, errors, tolerance, current_line, speed, room, where,
-                     moving(current))
+                     moves, futile)
     return FeedSearch(compensated=compensate, reference=current, commands=commands,
                       line=current_line, planned_index=index, errors=errors,
                       draws=ensemble.draws if on_ensemble else 1, rounds=round_,
                       machine_runs=machine_runs, misses=misses, limited=limited,
                       planned_line=planned_line)
+
+
+def _futile_lines(line: np.ndarray, ratio: np.ndarray, speed: np.ndarray, moves: np.ndarray,
+                  last_over: dict[int, tuple[float, float]]) -> set[int]:
+    """The source lines over the tolerance (``ratio`` > 1) that were over when last seen
+    too, whose largest ratio has not fallen since although the speed at it (its worst moving
+    sample's) fell by :data:`FUTILE_SLOWING` or more. ``last_over`` (line -> (largest ratio,
+    speed there) in the last round it was over) is brought up to date."""
+    over = (ratio > 1.0) & moves
+    if not over.any():
+        return set()
+    k = np.flatnonzero(over)
+    # each line's worst moving sample over the tolerance: the last of its samples in
+    # ascending order of ratio (a stable sort keeps it deterministic on ties)
+    order = k[np.lexsort((ratio[k], line[k]))]
+    last = np.concatenate([line[order][1:] != line[order][:-1], [True]])
+    worst = order[last]
+    found = set()
+    for key, r, s in zip(line[worst].tolist(), ratio[worst].tolist(), speed[worst].tolist()):
+        before = last_over.get(key)
+        if before is not None and before[1] >= FUTILE_SLOWING * s and r >= before[0]:
+            found.add(key)
+        last_over[key] = (r, s)
+    return found
 
 
 def gentle(stretch: np.ndarray, ts: float, halving: float | None = None) -> np.ndarray:
@@ -480,7 +523,7 @@ def moving(traj: Trajectory) -> np.ndarray:
 
 def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance, line,
             speed: np.ndarray, room: np.ndarray, where: str,
-            moves: np.ndarray) -> tuple[ToleranceMiss, ...]:
+            moves: np.ndarray, futile: np.ndarray) -> tuple[ToleranceMiss, ...]:
     """One :class:`ToleranceMiss` per window of consecutive samples over the tolerance
     (windows closer than 0.1 s merged), worst window first."""
     ratio = tolerance.ratios(errors)
@@ -504,7 +547,7 @@ def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance
             error=float(errors.tip[j] if is_tip else errors.orientation[j]),
             limit=tolerance.tip if is_tip else tolerance.orientation,
             speed=float(speed[j]), floor=bool(room[j] <= 1.0 + CHECK_RTOL), where=where,
-            at_rest=not bool(moves[j])))
+            at_rest=not bool(moves[j]), futile=bool(futile[j])))
     return tuple(sorted(found, key=lambda m: -m.error / m.limit))
 
 
@@ -546,5 +589,5 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
                                exempt_lines=tuple(sorted(int(k) for k in exempt_lines or ())))
 
 
-__all__ = ["AIM", "EXPONENT", "MAX_ROUNDS", "ContourTolerance", "FeedSearch",
+__all__ = ["AIM", "EXPONENT", "FUTILE_SLOWING", "MAX_ROUNDS", "ContourTolerance", "FeedSearch",
            "FeedWithinTolerance", "ToleranceMiss", "feed_within_tolerance", "search_feed"]
