@@ -32,7 +32,7 @@ from pathlib import Path
 
 from docpage import DOCS, markdown_table, replace_section, stamp
 from measure_compensation import TEST_PATHS, fan25_path, flank_path
-from measure_programs import DEMO_FOLDERS, PROGRAMS, write_cl_csv
+from measure_programs import PROGRAMS, find_demo, write_cl_csv
 from precontour import builtin_path
 from precontour.planning import ContourTolerance
 from precontour.trajectory.builtin_paths import BUILTIN_PATHS
@@ -97,8 +97,7 @@ def paths_section(folder: Path) -> str:
 def linuxcnc_section(demos: Path | None, programs: list[str], folder: Path) -> str:
     rows, places = [], []
     for name in programs:
-        candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
-        path = next((c for c in candidates if c.is_file()), None)
+        path = find_demo(name, demos)
         if path is None:
             print(f"not found: {name}", file=sys.stderr)
             continue

@@ -46,6 +46,13 @@ DEMO_FOLDERS = (
     "table-rotary-tilting/demos",
 )
 PROGRAMS = ("impeller-7bl-xyzac.ngc", "boat-xyzac.ngc")
+
+
+def find_demo(name: str, demos: Path | None = None) -> Path | None:
+    """LinuxCNC's example program ``name``: in ``demos`` if given, else where LinuxCNC
+    installs its examples (:data:`DEMO_FOLDERS`); None where it is in neither."""
+    candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
+    return next((c for c in candidates if c.is_file()), None)
 CONTROLLERS = ("pid-high", "pid-low")
 
 
@@ -60,8 +67,7 @@ def summary_pair(result) -> tuple[dict, dict]:
 def linuxcnc_section(demos: Path | None, folder: Path, passes: int = 0) -> str:
     found = []
     for name in PROGRAMS:
-        candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
-        path = next((c for c in candidates if c.is_file()), None)
+        path = find_demo(name, demos)
         if path is not None:
             found.append(path)
     rows, places = [], []

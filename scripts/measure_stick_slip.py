@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from docpage import DOCS, markdown_table, replace_section, stamp
-from measure_programs import DEMO_FOLDERS, PROGRAMS
+from measure_programs import PROGRAMS, find_demo
 from precontour.compensation.blocks import judge, with_repeatability, worse_blocks
 from precontour.compensation.pieces import contour_errors_program
 from precontour.simulation.virtual_machine import REALISTIC, simulate
@@ -226,9 +226,7 @@ def main(argv=None) -> int:
     replace_section(args.output, "intro", INTRO)
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.programs.split(","):
-            candidates = ([args.demos / name] if args.demos else []) + \
-                [Path(d) / name for d in DEMO_FOLDERS]
-            path = next((c for c in candidates if c.is_file()), None)
+            path = find_demo(name, args.demos)
             if path is None:
                 parser.error(f"{name} not found (give --demos DIR)")
             body = program_section(path, Path(tmp))
