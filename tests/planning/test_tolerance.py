@@ -10,7 +10,7 @@ from scipy.interpolate import make_interp_spline
 from precontour.cli import main
 from precontour.errors import ToleranceError
 from precontour.planning import ContourTolerance, feed_within_tolerance
-from precontour.planning.tolerance import HALVING_TIME, gentle
+from precontour.planning.tolerance import FUTILE_SLOWING, HALVING_TIME, _futile_lines, gentle
 from precontour.prediction.contour import ReferencePath
 from precontour.simulation.ensemble import MachineEnsemble
 from precontour.simulation.virtual_machine import REALISTIC, simulate
@@ -236,6 +236,36 @@ def test_gentle_against_brute_force():
     brute = np.exp((np.log(stretch)[None, :] - c * np.abs(k[:, None] - k[None, :])).max(axis=1))
     np.testing.assert_allclose(gentle(stretch, ts), brute, rtol=1e-12)
     assert np.all(gentle(stretch, ts) >= stretch)
+
+
+def test_a_line_is_futile_where_its_error_did_not_fall_with_the_speed():
+    """Worked by hand, two rounds of four lines of five samples: each line's worst moving
+    sample over the tolerance is compared with the round it was last over. Line 1: speed
+    halved at its worst sample, ratio unchanged: futile. Line 2: speed halved, ratio a
+    quarter (a lag's): not. Line 3: ratio unchanged but slowed by less than FUTILE_SLOWING:
+    not. Line 4: over only while at rest (a stop): never judged."""
+    line = np.repeat([1, 2, 3, 4], 5)
+    moves = np.ones(20, dtype=bool)
+    moves[15:] = False
+    ratio = np.ones(20) * 0.5
+    ratio[[2, 7, 12, 17]] = [3.0, 4.0, 2.0, 5.0]
+    speed = np.ones(20)
+    last: dict = {}
+    assert _futile_lines(line, ratio, speed, moves, last) == set()
+    assert last == {1: (3.0, 1.0), 2: (4.0, 1.0), 3: (2.0, 1.0)}
+    ratio2, speed2 = ratio.copy(), speed.copy()
+    speed2[:10] = 0.5                                   # lines 1 and 2 slowed 2x
+    speed2[10:15] = 1.0 / (0.9 * FUTILE_SLOWING)        # line 3 slowed by less
+    ratio2[7] = 1.0 + 1e-9                              # line 2's error a quarter, still over
+    assert _futile_lines(line, ratio2, speed2, moves, last) == {1}
+    # the worst sample moves within a line: its speed is the one compared
+    ratio3, speed3 = ratio2.copy(), speed2.copy()
+    ratio3[[2, 4]] = [0.5, 3.1]
+    speed3[4] = 0.4 / FUTILE_SLOWING
+    assert _futile_lines(line, ratio3, speed3, moves, last) == {1}
+    # no line over: nothing, and the record is kept
+    assert _futile_lines(line, np.zeros(20), speed3, moves, last) == set()
+    assert last[1] == (3.1, 0.4 / FUTILE_SLOWING)
 
 
 def test_commands_whose_kinks_were_smoothed_in_the_first_round_keep_the_limits(machine):
