@@ -38,11 +38,10 @@ import numpy as np
 
 from docpage import DOCS, markdown_table, replace_section, stamp
 from measure_programs import PROGRAMS, find_demo
-from precontour.compensation.blocks import (ORIENTATION_MARGIN, RELATIVE_MARGIN, TIP_MARGIN, judge,
-                                           margin_bound, with_repeatability, worse_blocks)
-from precontour.compensation.pieces import contour_errors_program
-from precontour.simulation.virtual_machine import REALISTIC, simulate
-from precontour.workflow import RunOutputs, run_program
+from precontour.compensation.blocks import (RELATIVE_MARGIN, TIP_MARGIN, Judgement, judge,
+                                           with_repeatability, worse_blocks)
+from precontour.compensation.blend import taper_weight
+from precontour.workflow import RunOutputs, errors_on_draws, run_program
 
 MACHINE, CONTROLLER = "linuxcnc-xyzac-trt", "pid-high"
 #: Period of the perturbing wave, s: slow against every servo dynamics, so that it changes
@@ -54,7 +53,7 @@ MOVING = np.array([1e-6] * 3 + [1e-8] * 2)
 SLOW = np.array([1e-3] * 3 + [1e-5] * 2)
 #: The waves added to the uncompensated command: (amplitude in mm, keep the velocity's sign).
 AMPLITUDES = ((1e-9, True), (1e-6, True), (1e-9, False), (1e-6, False))
-#: Samples over which the wave fades in and out where it is left out (C2, 20 ms).
+#: Time (s) over which the wave fades in and out where it is left out (C2).
 FADE = 0.02
 
 INTRO = """# Stick-slip and the per-line comparison, measured
@@ -78,24 +77,6 @@ command is worse than the uncompensated one are nearly all lines where it moves 
 direction of a creeping or resting reference (its lead before a start, its ripple at a rest)."""
 
 
-def faded_mask(outside: np.ndarray, samples: int) -> np.ndarray:
-    """Weight 0 on ``outside``, rising to 1 over ``samples`` beyond it (four moving averages:
-    C2), so that a wave multiplied by it starts and stops smoothly."""
-    box = max(1, samples // 4)
-    index = np.flatnonzero(outside)
-    n = outside.size
-    marks = np.zeros(n + 1)
-    np.add.at(marks, np.clip(index - 2 * box, 0, n), 1.0)
-    np.add.at(marks, np.clip(index + 2 * box + 1, 0, n), -1.0)
-    cut = (np.cumsum(marks[:n]) > 0).astype(float)
-    kernel = np.ones(box) / box
-    for _ in range(4):
-        cut = np.convolve(np.pad(cut, (box, box), mode="edge"), kernel, mode="same")[box:-box]
-    weight = 1.0 - np.clip(cut, 0.0, 1.0)
-    weight[outside] = 0.0
-    return weight
-
-
 def perturbed(t: np.ndarray, q: np.ndarray, amplitude: float, keep_sign: bool,
               seed: int = 1) -> np.ndarray:
     """``q`` plus a wave of ``amplitude`` mm (1 % of it in rad on A and C), left out where the
@@ -104,17 +85,17 @@ def perturbed(t: np.ndarray, q: np.ndarray, amplitude: float, keep_sign: bool,
     rng = np.random.default_rng(seed)
     out = np.array(q, dtype=float, copy=True)
     for axis in range(5):
-        step = np.diff(q[:, axis])
         if keep_sign:
             outside = np.abs(np.gradient(q[:, axis], ts)) < MOVING[axis]
         else:
-            still = step == 0
+            still = np.diff(q[:, axis]) == 0
             outside = np.zeros(q.shape[0], dtype=bool)
             outside[1:-1] = still[1:] & still[:-1]
             outside[0], outside[-1] = still[0], still[-1]
         scale = amplitude if axis < 3 else 0.01 * amplitude
         wave = np.sin(2 * np.pi * t / WAVE_PERIOD + rng.uniform(0, 2 * np.pi))
-        out[:, axis] += scale * wave * faded_mask(outside, int(round(FADE / ts)))
+        fade_out = taper_weight(outside, ts, hold=0.0, width=FADE)[0]
+        out[:, axis] += scale * wave * (1.0 - fade_out)
     return out
 
 
@@ -123,13 +104,22 @@ def length(mm: float) -> str:
     return f"{1e9 * mm:g} pm" if mm < 1e-6 else f"{1e6 * mm:g} nm"
 
 
-def opposed_samples(q_reference: np.ndarray, q: np.ndarray, ts: float) -> int:
-    """Samples (summed over the axes) where the reference moves slower than :data:`SLOW` and
+def opposed_steps(q_reference: np.ndarray, q: np.ndarray, ts: float) -> np.ndarray:
+    """Per step and axis (shape (N - 1, 5)): the reference moves slower than :data:`SLOW` and
     the command's step has another sign than the reference's (0 a sign of its own)."""
     step_reference = np.diff(q_reference, axis=0)
     step = np.diff(q, axis=0)
     slow = np.abs(step_reference) < SLOW * ts
-    return int(np.sum(slow & (np.sign(step) != np.sign(step_reference))))
+    return slow & (np.sign(step) != np.sign(step_reference))
+
+
+def one_draw(judgement: Judgement, draw: int) -> Judgement:
+    """``judgement`` on its draw ``draw`` alone (its repeatability kept)."""
+    pick = slice(draw, draw + 1)
+    return replace(judgement, summaries=judgement.summaries[pick],
+                   tip_max=judgement.tip_max[pick], tip_mean=judgement.tip_mean[pick],
+                   orientation_max=judgement.orientation_max[pick],
+                   orientation_mean=judgement.orientation_mean[pick])
 
 
 def program_section(path: Path, folder: Path) -> str:
@@ -139,18 +129,11 @@ def program_section(path: Path, folder: Path) -> str:
     machine = result.machine
     check = result.draws
     ensemble = check.ensemble
-    rotary = [d.is_rotary for d in machine.drives]
     before, after = check.before, check.after
     t, ts = reference.t, reference.ts
 
     def judged(q):
-        def errors():
-            for draw in range(ensemble.draws):
-                options = ensemble.option(draw, reference.n_samples, rotary) \
-                    if draw or not ensemble.nominal else {}
-                q_act = simulate(t, q, machine, CONTROLLER, **REALISTIC, **options).q_act
-                yield contour_errors_program(reference, q_act, machine.kinematics)
-        return judge(errors(), check.starts)
+        return judge(errors_on_draws(reference, q, machine, CONTROLLER, ensemble), check.starts)
 
     def row(label, judgement, q):
         worst = judgement.worst["tip_max_um"]
@@ -158,7 +141,7 @@ def program_section(path: Path, folder: Path) -> str:
         return [label, f"{worst:.1f}", f"{nominal:.1f}",
                 f"{worse_blocks(judgement, before).sum():,}",
                 f"{worse_blocks(judgement, before.without_repeatability()).sum():,}",
-                "" if q is None else f"{opposed_samples(reference.q, q, ts):,}"]
+                "" if q is None else f"{int(opposed_steps(reference.q, q, ts).sum()):,}"]
 
     rows = [row("uncompensated", before, reference.q),
             row("uncompensated, run again (encoder noise drawn afresh)", check.again, None)]
@@ -179,19 +162,13 @@ def program_section(path: Path, folder: Path) -> str:
                     orientation_repeatability=np.maximum(before.orientation_repeatability,
                                                          scatter.orientation_repeatability))
     worse_lines = np.flatnonzero(worse_blocks(after, before))
-    # draw by draw: each draw's line against the same draw's uncompensated line
-    tip_bound = np.maximum(margin_bound(before.tip_max, TIP_MARGIN),
-                           before.tip_max + before.tip_repeatability)
-    ori_bound = np.maximum(margin_bound(before.orientation_max, ORIENTATION_MARGIN),
-                           before.orientation_max + before.orientation_repeatability)
-    draws_worse = ((after.tip_max > tip_bound) | (after.orientation_max > ori_bound)).sum(axis=0)
+    # draw by draw: each draw's line against the same draw's uncompensated line, by run's rule
+    draws_worse = sum(worse_blocks(one_draw(after, d), one_draw(before, d)).astype(int)
+                      for d in range(ensemble.draws))
     draws_better = (after.tip_max < before.tip_max
                     - np.maximum(TIP_MARGIN, RELATIVE_MARGIN * before.tip_max)).sum(axis=0)
-    step_reference = np.diff(reference.q, axis=0)
-    step = np.diff(result.commands.q, axis=0)
-    opposed = np.any((np.abs(step_reference) < SLOW * ts)
-                     & (np.sign(step) != np.sign(step_reference)), axis=1)
-    opposed = np.concatenate([opposed, [False]])
+    opposed = np.concatenate([opposed_steps(reference.q, result.commands.q, ts).any(axis=1),
+                              [False]])
     has_opposed = np.logical_or.reduceat(opposed, check.starts)
     share_worse = has_opposed[worse_lines].mean() if worse_lines.size else float("nan")
     table = markdown_table(

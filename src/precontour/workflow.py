@@ -877,29 +877,43 @@ def worse_in_whole_message(quantities: Sequence[str], learned: bool = False) -> 
                ": --learn N keeps a command that is nowhere worse on the draws"))
 
 
+def errors_on_draws(reference: Trajectory, q: np.ndarray, machine_obj: Machine,
+                    controller: str, ensemble: MachineEnsemble,
+                    nominal: ContourErrors | None = None):
+    """The contour errors of the commands ``q`` against ``reference`` on each draw of
+    ``ensemble`` (on the realistic virtual machine), one draw simulated at a time, so that one
+    draw's encoder noise and motion are in memory at once (a long program); a generator.
+    Draw 0 of an ensemble whose first draw is the machine file's machine is ``nominal`` where
+    given (its errors there, already simulated)."""
+    from .simulation.virtual_machine import REALISTIC, simulate
+
+    rotary = [d.is_rotary for d in machine_obj.drives]
+    first = 0
+    if ensemble.nominal and nominal is not None:
+        yield nominal
+        first = 1
+    for draw in range(first, ensemble.draws):
+        check_signals()
+        q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
+                         **ensemble.option(draw, reference.n_samples, rotary)).q_act
+        yield contour_errors_program(reference, q_act, machine_obj.kinematics)
+
+
 def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj: Machine,
                    controller: str, nominal: tuple[ContourErrors, ContourErrors], *,
                    line: np.ndarray | None = None,
                    ensemble: MachineEnsemble | None = None) -> DrawCheck:
     """Both commands (``reference.q`` and ``q_compensated``) on every draw of ``ensemble``
-    (default :class:`MachineEnsemble` ()): draw 0, the machine file's machine, is ``nominal``
-    (their errors there, already simulated); the others are simulated one draw at a time, so
-    that one draw's encoder noise and motion are in memory at once (a long program)."""
+    (default :class:`MachineEnsemble` ()) (:func:`errors_on_draws`): draw 0, the machine
+    file's machine, is ``nominal`` (their errors there, already simulated; no encoder, so a
+    rerun is the same run)."""
     from .compensation.blocks import block_starts, judge, with_repeatability
-    from .simulation.virtual_machine import REALISTIC, simulate
 
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     starts = block_starts(reference.n_samples, reference.ts, line)
-    rotary = [d.is_rotary for d in machine_obj.drives]
 
     def on_draws(q, errors_nominal, machines=ensemble):
-        if machines.nominal:
-            yield errors_nominal    # no encoder: a rerun is the same run
-        for draw in range(1 if machines.nominal else 0, machines.draws):
-            check_signals()
-            q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
-                             **machines.option(draw, reference.n_samples, rotary)).q_act
-            yield contour_errors_program(reference, q_act, machine_obj.kinematics)
+        return errors_on_draws(reference, q, machine_obj, controller, machines, errors_nominal)
 
     before = judge(on_draws(reference.q, nominal[0]), starts)
     again = None

@@ -16,22 +16,16 @@ TAPER_HOLD = 0.05
 TAPER_WIDTH = 0.1
 
 
-def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np.ndarray,
-                      ts: float, hold: float = TAPER_HOLD
-                      ) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """Commands whose correction ``q_compensated - q_planned`` is left out around the samples
-    ``over`` (within ``hold``, s; :data:`TAPER_HOLD`) and tapered in and out over
-    :data:`TAPER_WIDTH`.
-
-    The weight is the indicator of the widened windows smoothed by four moving averages (a
-    cubic B-spline kernel: C2, so the taper adds bounded jerk, of the order of the correction
-    over ``TAPER_WIDTH`` cubed); it is exactly 0 on the samples over a limit. Returns the
-    commands and the left-out windows as sample index pairs.
-    """
+def taper_weight(over: np.ndarray, ts: float, hold: float = TAPER_HOLD,
+                 width: float = TAPER_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+    """Weight 1 within ``hold`` (s) of the samples ``over``, falling to 0 over ``width`` (s) on
+    each side: the indicator of the widened windows smoothed by four moving averages (a cubic
+    B-spline kernel: C2); exactly 1 on ``over``. Returns the weight and the widened windows
+    (the indicator before smoothing)."""
     n = over.size
     hold = int(round(hold / ts))
-    box = max(1, int(round(TAPER_WIDTH / ts / 4)))
-    # widen by the hold and by the kernel's half-support, so that the weight is 0 on ``over``
+    box = max(1, int(round(width / ts / 4)))
+    # widen by the hold and by the kernel's half-support, so that the weight is 1 on ``over``
     widen = hold + 2 * box
     index = np.flatnonzero(over)
     marks = np.zeros(n + 1)
@@ -44,6 +38,21 @@ def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np
         weight = np.convolve(np.pad(weight, (box, box), mode="edge"), kernel, mode="same")[box:-box]
     weight = np.clip(weight, 0.0, 1.0)
     weight[over] = 1.0
+    return weight, cut
+
+
+def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np.ndarray,
+                      ts: float, hold: float = TAPER_HOLD
+                      ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Commands whose correction ``q_compensated - q_planned`` is left out around the samples
+    ``over`` (within ``hold``, s; :data:`TAPER_HOLD`) and tapered in and out over
+    :data:`TAPER_WIDTH`.
+
+    The weight is :func:`taper_weight` (C2, so the taper adds bounded jerk, of the order of
+    the correction over ``TAPER_WIDTH`` cubed); it is exactly 0 on the samples over a limit.
+    Returns the commands and the left-out windows as sample index pairs.
+    """
+    weight, cut = taper_weight(over, ts, hold)
     q = q_compensated - weight[:, None] * (q_compensated - q_planned)
     # where the correction is left out wholly, the planned command to the last digit (the
     # difference above is off by round-off, and a fallback judged against the planned
