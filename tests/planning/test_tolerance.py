@@ -126,10 +126,11 @@ def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
     again, outside the rapid (measured: 17.7 um, 0.18 mrad; 5.64 s against 3.88 s as
     programmed). The uncompensated baseline cannot keep them at any feed: where the rotary
     axes stop, static friction holds them off their commands, and slowing down does not lower
-    that error, so the search stops slowing there (planning.tolerance.FUTILE_SLOWING; measured:
-    46.8 um at line 11 at 20.1 % of the plan's speed, the baseline 9.83 s; slowed on to 3.4 %
-    before that rule, 49.6 um at line 10, 11.32 s), and the misses name the lines. The upper-bound plan is
-    shorter than the programmed one (3.30 s): the feed scale applies to the G-code feeds.
+    that error, so the search stops slowing there (planning.tolerance.FUTILE_SLOWING;
+    measured: 46.8 um at line 11 at 20.1 % of the plan's speed, the baseline 9.83 s; slowed
+    on to 3.4 % before that rule, 49.6 um at line 10, 11.32 s), and the misses name the
+    lines. The upper-bound plan is shorter than the programmed one (3.30 s): the feed scale
+    applies to the G-code feeds.
     The rapid's errors are not counted."""
     source = tmp_path / "stop.ngc"
     source.write_text(PROGRAM)
@@ -239,7 +240,7 @@ def test_gentle_against_brute_force():
 
 
 def test_a_line_is_futile_where_its_error_did_not_fall_with_the_speed():
-    """Worked by hand, two rounds of four lines of five samples: each line's worst moving
+    """Worked by hand, rounds over four lines of five samples: each line's worst moving
     sample over the tolerance is compared with the round it was last over. Line 1: speed
     halved at its worst sample, ratio unchanged: futile. Line 2: speed halved, ratio a
     quarter (a lag's): not. Line 3: ratio unchanged but slowed by less than FUTILE_SLOWING:

@@ -391,8 +391,8 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     on_ensemble = False
     machine_runs = 0
     limited = None
-    # per source line: its largest ratio and lowest speed in the last round it was over the
-    # tolerance; the lines whose error did not fall with the speed (FUTILE_SLOWING)
+    # per source line: its largest ratio and the speed at it in the last round it was over
+    # the tolerance; the lines whose error did not fall with the speed (FUTILE_SLOWING)
     last_over: dict[int, tuple[float, float]] = {}
     futile_lines: set[int] = set()
     for round_ in range(1, max_rounds + 1):
