@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precontour.compensation.idle_axes import hold_idle_axes, idle_axes
+from precontour.compensation.idle_axes import (hold_idle_axes, hold_resting_axes, idle_axes,
+                                              resting_axes)
 from precontour.compensation.precompensate import compensate
 from precontour.prediction.contour import ReferencePath, contour_errors
 from precontour.simulation.virtual_machine import REALISTIC, simulate
@@ -35,6 +36,14 @@ def test_hand_made_commands():
     assert held is not q and q[-1, 0] != reference[-1, 0]   # the input is not changed
     assert hold_idle_axes(reference, held, TOL) is held   # nothing to change: same array
     assert hold_idle_axes(reference, q, 1e-9) is q        # no axis within a tighter tolerance
+    # every resting axis, whatever its correction: X, Z, A and C (Y moves)
+    assert resting_axes(reference, TOL).tolist() == [True, False, True, True, True]
+    all_held = hold_resting_axes(reference, q, TOL)
+    np.testing.assert_array_equal(all_held[:, [0, 2, 3, 4]], reference[:, [0, 2, 3, 4]])
+    np.testing.assert_array_equal(all_held[:, 1], q[:, 1])
+    assert hold_resting_axes(reference, all_held, TOL) is all_held
+    # C's round-off of 1e-12 is beyond a tolerance of 1e-13
+    assert resting_axes(reference, 1e-13).tolist() == [True, False, True, True, False]
 
 
 @pytest.fixture(scope="module")

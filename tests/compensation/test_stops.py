@@ -377,3 +377,52 @@ def test_a_block_within_the_uncompensated_repeatability_is_not_worse():
                                lambda q_cmd, q_act, actual: q_cmd, **options)
     assert report.chosen == "linear, fell back in 1 block(s)"
     assert report.fallback.blocks[0].start == pytest.approx(0.3)
+
+
+def test_a_variant_is_learned_again_and_competes_for_being_kept():
+    """A toy machine on which a command that moves the resting axis Y at all slips 4 um in X on
+    its second draw (a resting axis under static friction, pushed by the feed-forward): the
+    linear command (1 um, Y corrected by 1 nm) leaves 5 um on that draw. Its variant with Y
+    held, learned again from the held linear command, leaves 1 um on both draws and is kept,
+    labelled with the variant's name; every iterate of the variant holds Y. A variant that
+    changes nothing learns nothing again."""
+    n = 400
+    q_ref = np.zeros((n, 5))
+    q_ref[:, 0] = 10e-3
+    q_linear = np.zeros((n, 5))
+    q_linear[:, 0] = 1e-3
+    q_linear[:, 1] = 1e-6
+    tried = []
+
+    def two_draws(q):
+        tried.append(q)
+        second = q.copy()
+        if np.any(q[:, 1] != q_ref[:, 1]):
+            second[:, 0] += 4e-3
+        return np.stack([q, second])
+
+    def step(q_cmd, q_act, actual):
+        return q_cmd + np.array([0, 1e-6, 0, 0, 0])    # the update moves Y again
+
+    def hold_y(q):
+        if np.array_equal(q[:, 1], q_ref[:, 1]):
+            return q
+        held = q.copy()
+        held[:, 1] = q_ref[:, 1]
+        return held
+
+    options = dict(passes=1, settle_delays=(), line_search_steps=())
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
+                               variants=(("Y held", hold_y),), **options)
+    labels = [c.label for c in report.candidates]
+    assert labels == ["uncompensated", "linear", "pass 1", "linear, Y held", "pass 1, Y held"]
+    assert report.chosen == "linear, Y held"          # the first of the two ties
+    np.testing.assert_array_equal(q, hold_y(q_linear))
+    assert report.kept["tip_max_um"] == pytest.approx(1.0)
+    assert report.linear["tip_max_um"] == pytest.approx(5.0)
+    assert report.machine_runs == 2 * 5
+    assert all(np.array_equal(q[:, 1], q_ref[:, 1]) for q in tried[-2:])
+    q, report = learn_at_stops(q_ref, hold_y(q_linear), 1e-3, two_draws, _toy_errors,
+                               lambda q_cmd, q_act, actual: q_cmd,
+                               variants=(("Y held", hold_y),), **options)
+    assert [c.label for c in report.candidates] == ["uncompensated", "linear", "pass 1"]

@@ -27,7 +27,7 @@ from ..prediction.contour import ContourErrors, ReferencePath
 from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
-from .idle_axes import hold_idle_axes
+from .idle_axes import hold_idle_axes, hold_resting_axes
 from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
 
 # METHODS and COMPENSATION_TOL_* (the spline fit tolerances when compensating, ten times finer
@@ -227,7 +227,10 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
             progress=learning_progress, line=getattr(traj, "line", None),
             fallbacks=(("tracking-error pre-compensation", hold(q_tracking)),),
             t0=float(t[0]), tail_errors_of=tail_errors_of,
-            repeat_actual=getattr(machine_actual, "repeat", None))
+            repeat_actual=getattr(machine_actual, "repeat", None),
+            variants=(("resting axes held",
+                       lambda q: hold_resting_axes(traj.q, q, idle_tolerance)),)
+            if hold_idle else ())
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":

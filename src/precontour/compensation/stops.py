@@ -14,9 +14,11 @@ linear prediction (a callable, in practice the virtual machine with friction, pa
 compensation comes before simulation in the pipeline), in two sequences: the plain update, and
 one whose step along each update is line-searched on the machine. Each iterate is also tried
 with its final-dwell tail settled (held exactly at the end position from a delay after the stop
-on, so that a slowly creeping command does not switch the friction feed-forward on). Where the
-commands must keep the axis limits, each update and settling is smoothed and a command beyond a
-limit is not kept.
+on, so that a slowly creeping command does not switch the friction feed-forward on). Both
+sequences may be learned again in variants of the commands (every axis the reference never
+moves held at its reference, where the linear passes corrected one), whose iterates compete
+with the others. Where the commands must keep the axis limits, each update and settling is
+smoothed and a command beyond a limit is not kept.
 
 Where static friction holds an axis is decided by nanometres, so a choice taken on one exact
 simulation is a coin toss (issue 21: on `paper` / `pid-high` the command kept left 0.48, 0.51,
@@ -131,7 +133,8 @@ class LearningReport:
     chosen : str
         Label of the command kept: ``"uncompensated"``, ``"linear"`` (the linear passes'
         result), ``"pass n"`` (plain update) or ``"line-searched pass n (step s)"``, optionally
-        with ``", settled d ms"``, and ``", fell back in n block(s)"`` where it gave way
+        with ``", settled d ms"``, then the name of the variant it was learned in (e.g.
+        ``", resting axes held"``), and ``", fell back in n block(s)"`` where it gave way
         locally (:attr:`fallback`).
     uncompensated, linear, kept : dict
         Contour errors on the machine model (``ContourErrors.summary``) of the reference
@@ -197,7 +200,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    progress=None, line: np.ndarray | None = None,
                    fallbacks: Sequence[tuple[str, np.ndarray]] = (), update: str = "mean",
                    local: bool = True, t0: float = 0.0,
-                   tail_errors_of=None, repeat_actual: MachineActual | None = None
+                   tail_errors_of=None, repeat_actual: MachineActual | None = None,
+                   variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = ()
                    ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
@@ -268,6 +272,12 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         :func:`~precontour.simulation.ensemble_actual` gives as ``.repeat``): the uncompensated
         command is run on it once, and each block's margin is at least how much its errors
         changed (:func:`~.blocks.with_repeatability`).
+    variants : sequence of (str, callable)
+        Named projections of commands (e.g. every resting axis held at its reference,
+        :func:`~.idle_axes.hold_resting_axes`): for each, both sequences are learned again from
+        the projected ``q_linear``, every iterate projected, their labels ending with the
+        name; every candidate of every variant competes for being kept. A projection that
+        leaves ``q_linear`` as it is adds nothing.
 
     Returns
     -------
@@ -362,11 +372,14 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         except PrecontourError:
             return not_finite(max(draws, 1), starts.size), None, None
 
+    suffix = ""     # the name of the variant being learned, if any
+
     def consider(label, q, like=None):
         """Judge and record ``q``; returns what an update learns from (None when it
         diverged: such a candidate is never kept) and its motions and errors (for
         :func:`consider_settled`)."""
         judged, motion, errors = judged_safely(q, like)
+        label += suffix
         if not judged.finite:
             label += " (diverged)"
         repairable = judged.finite and (admissible is None or admissible(q))
@@ -378,11 +391,15 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             progress(label, judged.worst)
         return (None if motion is None else learned_from(motion)), (motion, errors)
 
+    project = None  # the projection of the variant being learned, if any
+
     def step_from(q_cmd, q_act):
         """The next iterate, or None when the update diverged."""
         try:
             with np.errstate(all="ignore"):
                 q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+                if project is not None:
+                    q_new = project(q_new)
         except PrecontourError:
             return None
         return q_new if np.all(np.isfinite(q_new)) else None
@@ -394,40 +411,46 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
 
     entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
                                       reference.median), q_reference, reference))
-    q_act_linear, linear_state = consider("linear", q_linear)
-    consider_settled("linear", q_linear, linear_state)
-    # The plain sequence: each pass applies the whole update. A sequence that diverges (an
-    # iterate not finite, or refused by the machine model) ends there: what it tried before
-    # stays a candidate, the diverged iterate is never kept.
-    q_cmd, q_act = q_linear, q_act_linear
-    for k in range(1, passes + 1):
-        q_cmd = None if q_act is None else step_from(q_cmd, q_act)
-        if q_cmd is None:
-            break
-        q_act, state = consider(f"pass {k}", q_cmd)
-        if q_act is None:
-            break
-        consider_settled(f"pass {k}", q_cmd, state)
-    # The line-searched sequence: each pass continues from the best step along the update,
-    # best on its worst draw.
-    if line_search_steps:
-        q_cmd, q_act = q_linear, q_act_linear
+    # Each variant learns both sequences again from its projection of q_linear.
+    for name, projection in (("", None), *variants):
+        q_first = q_linear if projection is None else projection(q_linear)
+        if projection is not None and q_first is q_linear:
+            continue
+        suffix, project = (f", {name}" if name else ""), projection
+        q_act_linear, linear_state = consider("linear", q_first)
+        consider_settled("linear", q_first, linear_state)
+        # The plain sequence: each pass applies the whole update. A sequence that diverges (an
+        # iterate not finite, or refused by the machine model) ends there: what it tried before
+        # stays a candidate, the diverged iterate is never kept.
+        q_cmd, q_act = q_first, q_act_linear
         for k in range(1, passes + 1):
-            q_full = None if q_act is None else step_from(q_cmd, q_act)
-            if q_full is None:
+            q_cmd = None if q_act is None else step_from(q_cmd, q_act)
+            if q_cmd is None:
                 break
-            tried = []
-            for step in line_search_steps:
-                label = f"line-searched pass {k} (step {step:g})"
-                with np.errstate(all="ignore"):
-                    q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
-                q_act_try, state = consider(label, q_try)
-                if q_act_try is not None:
-                    tried.append((entries[-1][2], label, q_try, q_act_try, state))
-            if not tried:
+            q_act, state = consider(f"pass {k}", q_cmd)
+            if q_act is None:
                 break
-            _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
-            consider_settled(label, q_cmd, state)
+            consider_settled(f"pass {k}", q_cmd, state)
+        # The line-searched sequence: each pass continues from the best step along the update,
+        # best on its worst draw.
+        if line_search_steps:
+            q_cmd, q_act = q_first, q_act_linear
+            for k in range(1, passes + 1):
+                q_full = None if q_act is None else step_from(q_cmd, q_act)
+                if q_full is None:
+                    break
+                tried = []
+                for step in line_search_steps:
+                    label = f"line-searched pass {k} (step {step:g})"
+                    with np.errstate(all="ignore"):
+                        q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
+                    q_act_try, state = consider(label, q_try)
+                    if q_act_try is not None:
+                        tried.append((entries[-1][2], label, q_try, q_act_try, state))
+                if not tried:
+                    break
+                _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
+                consider_settled(label, q_cmd, state)
     linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
     accepted = [entry for entry in entries if entry[0].accepted]
     ranks = np.array([entry[2].score for entry in accepted])

@@ -32,7 +32,7 @@ from ..trajectory.retime import Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .blend import taper_corrections
-from .idle_axes import hold_idle_axes
+from .idle_axes import hold_idle_axes, hold_resting_axes
 from .pieces import compensate_program, predict_program
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
@@ -336,6 +336,14 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def machine(q):
         return machine_actual(q if q is reference.q else project(q))
 
+    def hold_resting(q):
+        return hold_resting_axes(reference.q, q, idle_tolerance)
+
+    # learning again with the resting axes held, where one carries a correction beyond the
+    # idle tolerance (round-off on an idle axis is no reason to learn twice)
+    q_idle = hold(q_start)
+    variants = (() if hold_resting(q_idle) is q_idle
+                else (("resting axes held", hold_resting),))
     tracking = project(hold(reference.q + _predicted(reference, models, {}).e))
     return learn_at_stops(reference.q, q_start, ts, machine, errors_of,
                           learning_step(reference, path, kinematics, hold=hold),
@@ -345,7 +353,8 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           fallbacks=(("tracking-error pre-compensation", tracking),),
                           t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
                           settle_delays=settle_delays,
-                          repeat_actual=getattr(machine_actual, "repeat", None))
+                          repeat_actual=getattr(machine_actual, "repeat", None),
+                          variants=variants)
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):
