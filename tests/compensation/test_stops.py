@@ -85,14 +85,18 @@ def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like
     # reference, then per iterate of the plain sequence (linear + passes) itself and its
     # settled tails, plus the machine run of the orientation-corrected command inside each
     # pass; per line-searched pass that run, one per step tried and the best step's tails
-    # (and the judgements of the local fallbacks, if any)
+    # (and the judgements of the local fallbacks, if any). While the line search has taken
+    # the whole step at every pass, its whole step is the plain iterate: neither its update
+    # nor its judgement runs again, and its tails are the plain iterate's.
     settles, steps = len(SETTLE_DELAYS), len(LINE_SEARCH_STEPS)
-    candidates = 1 + (passes + 1) * (1 + settles) + passes * (steps + settles)
-    assert report.machine_runs == len(calls) == (candidates + 2 * passes
+    searched = [c.label for c in report.candidates if c.label.startswith("line-searched pass")]
+    off_track = sum("settled" in label for label in searched) // settles
+    reused = min(passes - off_track + 1, passes)
+    candidates = 1 + (passes + 1) * (1 + settles) + passes * steps + off_track * settles
+    assert report.machine_runs == len(calls) == (candidates - reused + 2 * passes - reused
                                                  + report.fallback_runs)
     assert len(report.candidates) == candidates and report.draws == 1
-    assert sum(c.label.startswith("line-searched pass") for c in report.candidates) == \
-        passes * (steps + settles)
+    assert len(searched) == passes * steps + off_track * settles
     # the kept command, re-run independently, has the reported errors
     reference = ReferencePath.from_trajectory(fan_like)
     rerun = contour_errors(reference, simulate(fan_like.t, result.trajectory.q, machine,
@@ -426,3 +430,36 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
                                lambda q_cmd, q_act, actual: q_cmd,
                                variants=(("Y held", hold_y),), **options)
     assert [c.label for c in report.candidates] == ["uncompensated", "linear", "pass 1"]
+
+
+def test_the_line_search_on_the_plain_track_does_not_run_the_plain_iterate_again():
+    """A toy update that halves X's error: the whole step is better at every pass, so the
+    line-searched sequence stays on the plain one, and its whole steps are the plain iterates
+    themselves (the same arrays, the same judgements) with no machine run: 1 (reference) +
+    1 (linear) + 3 (plain passes) + 3 (half steps) runs for 11 candidates."""
+    n = 400
+    q_ref = np.zeros((n, 5))
+    q_ref[:, 0] = 10e-3
+    q_linear = np.zeros((n, 5))
+    q_linear[:, 0] = 4e-3
+    runs = []
+
+    def machine(q):
+        runs.append(q)
+        return q
+
+    def halve(q_cmd, q_act, actual):
+        return 0.5 * q_cmd
+
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, machine, _toy_errors, halve, passes=3,
+                               settle_delays=(), line_search_steps=(0.5, 1.0))
+    labels = [c.label for c in report.candidates]
+    assert len(runs) == report.machine_runs == 8 and len(labels) == 11
+    for k in (1, 2, 3):
+        plain = report.candidates[labels.index(f"pass {k}")]
+        whole = report.candidates[labels.index(f"line-searched pass {k} (step 1)")]
+        assert whole.summary == plain.summary == {"tip_max_um": pytest.approx(4 / 2 ** k),
+                                                  "tip_mean_um": pytest.approx(4 / 2 ** k),
+                                                  "ori_max_mrad": 0.0, "ori_mean_mrad": 0.0}
+    assert report.chosen == "pass 3" and q[0, 0] == pytest.approx(0.5e-3)
+    assert len({q_run.tobytes() for q_run in runs}) == len(runs)    # no command run twice

@@ -423,6 +423,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         # iterate not finite, or refused by the machine model) ends there: what it tried before
         # stays a candidate, the diverged iterate is never kept.
         q_cmd, q_act = q_first, q_act_linear
+        plain = []      # per pass: the plain iterate, its entry and what an update learns from
         for k in range(1, passes + 1):
             q_cmd = None if q_act is None else step_from(q_cmd, q_act)
             if q_cmd is None:
@@ -430,18 +431,35 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             q_act, state = consider(f"pass {k}", q_cmd)
             if q_act is None:
                 break
+            plain.append((q_cmd, entries[-1], q_act))
             consider_settled(f"pass {k}", q_cmd, state)
         # The line-searched sequence: each pass continues from the best step along the update,
-        # best on its worst draw.
+        # best on its worst draw. While it has taken the whole update at every pass, its whole
+        # step is the plain iterate itself: that iterate's judgement is taken, not run again,
+        # and its settled tails were tried with it (on a long program, one update and one
+        # judgement of every draw per segment saved).
         if line_search_steps:
             q_cmd, q_act = q_first, q_act_linear
+            on_plain = True
             for k in range(1, passes + 1):
-                q_full = None if q_act is None else step_from(q_cmd, q_act)
+                same = on_plain and k <= len(plain)
+                if same:
+                    q_full = plain[k - 1][0]
+                else:
+                    q_full = None if q_act is None else step_from(q_cmd, q_act)
                 if q_full is None:
                     break
                 tried = []
                 for step in line_search_steps:
                     label = f"line-searched pass {k} (step {step:g})"
+                    if same and step == 1.0:
+                        _, (candidate, _, judged), q_act_try = plain[k - 1]
+                        entries.append((replace(candidate, label=label + suffix), q_full,
+                                        judged))
+                        if progress is not None:
+                            progress(label + suffix, judged.worst)
+                        tried.append((judged, label, q_full, q_act_try, None))
+                        continue
                     with np.errstate(all="ignore"):
                         q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
                     q_act_try, state = consider(label, q_try)
@@ -450,7 +468,9 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                 if not tried:
                     break
                 _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
-                consider_settled(label, q_cmd, state)
+                on_plain = same and q_cmd is q_full and state is None
+                if not on_plain:
+                    consider_settled(label, q_cmd, state)
     linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
     accepted = [entry for entry in entries if entry[0].accepted]
     ranks = np.array([entry[2].score for entry in accepted])
@@ -475,6 +495,11 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         estimates = np.array([repaired_score(entry[2], reference) for entry in unadmitted])
         order += [unadmitted[i] for i in np.argsort(estimates, kind="stable")
                   if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
+        # a command tried under two labels (a line-searched whole step on the plain track) is
+        # repaired once
+        seen = set()
+        order = [entry for entry in order
+                 if not (id(entry[1]) in seen or seen.add(id(entry[1])))]
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
                   if accepted[i][1] is not q_reference]
 
