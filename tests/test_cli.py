@@ -66,12 +66,13 @@ def test_pipeline_end_to_end(paper_csv, tmp_path, capsys):
     assert comp.read_text().splitlines()[0] == header
     printed = capsys.readouterr().out
     assert "predicted before" in printed and "predicted after" in printed
-    # 1 reference + 12 linear and its 11 settled tails + 13 plain pass (1 inside the contour
-    # step, 1 + 11 tails) + 14 line-searched pass (1 inside, 2 steps, 11 tails of the better),
-    # each on 5 draws of the machine, and the judgements of any local fallback
+    # at least 2 reference (run again for its repeatability) + 12 linear and its 11 settled
+    # tails + 13 plain pass (1 inside the contour step, 1 + 11 tails) + 1 line-searched pass
+    # (its half step; its whole step is the plain pass's command, and where the half step is
+    # better, 11 tails more), each on 5 draws of the machine, and any local fallback's
     learned = re.search(r"learned against the virtual machine with friction \(1 pass\(es\), "
                         r"5 draw\(s\), (\d+) runs\)", printed)
-    assert learned and int(learned.group(1)) >= 40 * 5
+    assert learned and int(learned.group(1)) >= 28 * 5
     assert "within the machine's limits" in printed
     sim = tmp_path / "sim.csv"
     assert main(["simulate", str(comp), "--controller", "pid-high", "--reference",
