@@ -21,7 +21,7 @@ from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 from precontour.trajectory.limits import AxisLimits
 
-from conftest import nanometre_draws
+from conftest import FRICTION_DRAWS, nanometre_draws
 
 
 @pytest.fixture(scope="module")
@@ -311,6 +311,19 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
     assert np.any(_peaks(unsmoothed.trajectory.q, traj.ts)[2] > limits.jerk)   # the problem
 
 
+def _circle_pid_low_learned(tmp_path, draws: int = FRICTION_DRAWS):
+    """`run --learn 4` on `circle` as CL data with `pid-low`, on ``draws`` nanometre draws of
+    its points (:func:`conftest.nanometre_draws`): (draw, result) each."""
+    from precontour.workflow import RunOutputs, run_program
+
+    for draw, path in enumerate(nanometre_draws(builtin_path("circle"), draws=draws)):
+        source = tmp_path / f"circle{draw}.csv"
+        np.savetxt(source, np.column_stack([path.P, path.O]), delimiter=",",
+                   header="Px,Py,Pz,Oi,Oj,Ok", comments="", fmt="%.17g")
+        yield draw, run_program(source, RunOutputs(program=tmp_path / "c.ngc"),
+                                machine="zhang2013", controller="pid-low", learn=4)
+
+
 def test_second_chance_margin_keeps_learning_from_returning_the_uncompensated(machine, tmp_path,
                                                                              monkeypatch):
     """`run --learn 4` on `circle` as CL data with `pid-low` (uncompensated 154 um on the
@@ -323,19 +336,11 @@ def test_second_chance_margin_keeps_learning_from_returning_the_uncompensated(ma
     window by window, with the margin it was kept under. Measured on 5 nanometre draws of
     the CL points: all kept "pass 4" with the second chance, its worst draw 2.14-2.22 um
     (0.014 of the uncompensated), hence the bound 0.05."""
-    import precontour.compensation.within_limits as within_limits
-    from precontour.workflow import RunOutputs, run_program
-
     # no variant: the held X is what test_resting_axis_held_... is about
     monkeypatch.setattr(within_limits, "hold_resting_axes", lambda reference, q, tol: q)
     ensemble = MachineEnsemble()
     kept = []
-    for draw, path in enumerate(nanometre_draws(builtin_path("circle"))):
-        source = tmp_path / f"circle{draw}.csv"
-        np.savetxt(source, np.column_stack([path.P, path.O]), delimiter=",",
-                   header="Px,Py,Pz,Oi,Oj,Ok", comments="", fmt="%.17g")
-        result = run_program(source, RunOutputs(program=tmp_path / "c.ngc"),
-                             machine="zhang2013", controller="pid-low", learn=4)
+    for draw, result in _circle_pid_low_learned(tmp_path):
         report = result.limited.result.learning
         assert report.chosen != "uncompensated", report.chosen
         kept.append(report.kept["tip_max_um"] / report.uncompensated["tip_max_um"])
@@ -360,15 +365,8 @@ def test_resting_axis_held_where_its_correction_slips(machine, tmp_path):
     max 5.9 % of the uncompensated on every input draw (the max is a fallback's: at the
     start every command was worse in orientation than uncompensated, and the correction
     tapers in there), hence the bounds 0.07."""
-    from precontour.workflow import RunOutputs, run_program
-
     ensemble = MachineEnsemble()
-    for draw, path in enumerate(nanometre_draws(builtin_path("circle"), draws=3)):
-        source = tmp_path / f"circle{draw}.csv"
-        np.savetxt(source, np.column_stack([path.P, path.O]), delimiter=",",
-                   header="Px,Py,Pz,Oi,Oj,Ok", comments="", fmt="%.17g")
-        result = run_program(source, RunOutputs(program=tmp_path / "c.ngc"),
-                             machine="zhang2013", controller="pid-low", learn=4)
+    for draw, result in _circle_pid_low_learned(tmp_path, draws=3):
         report = result.limited.result.learning
         assert report.chosen.split(", fell back")[0].endswith("resting axes held"), report.chosen
         q = result.limited.result.trajectory.q
