@@ -17,8 +17,9 @@ at the tool tip, corrected with a linear axis) is kept by the linear passes; whe
 a machine with friction is for learning to decide on its draws
 (:func:`hold_resting_axes` gives the variant in which every resting axis is held). Measured on
 ``circle`` / ``pid-low`` within the limits: X corrections of up to 1 um left X resting a
-different micrometre off on each draw, and the worst draw kept 88.2 % of the mean tip error
-removed against 95.9 % with X held (issue 21).
+different micrometre off on each draw; the command learning kept removed 88.2 % of the worst
+draw's mean tip error, 15 rows worse than uncompensated, and learning with X held 94.1 %,
+no row worse (issue 21).
 """
 
 from __future__ import annotations
