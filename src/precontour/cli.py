@@ -210,7 +210,7 @@ def _add_compensate_command(commands) -> None:
                            "reversals, the final dwell; keeps a command only if it is "
                            "nowhere worse there than the uncompensated one, on each of "
                            "5 draws of that machine (friction, J, B, encoder) and in "
-                           "every 0.1 s window; each pass costs 27 runs of the 5 draws; "
+                           "every 0.1 s window; each pass costs up to 27 runs of the 5 draws; "
                            f"0 = off (default {DEFAULT_LEARNING_PASSES}; contour method "
                            "only)")
     compensate.add_argument("--ignore-limits", action="store_true",
@@ -414,7 +414,7 @@ def _add_run_command(commands) -> None:
                            "(as for compensate), after the compensation within limits: each "
                            "learning update smoothed, a command kept only if it keeps the "
                            "limits and is nowhere worse there than the uncompensated one; "
-                           "each pass costs 27 virtual-machine runs; with --tolerance, in "
+                           "each pass costs up to 27 virtual-machine runs; with --tolerance, in "
                            "every round of the search (default 0 = off)")
     _add_min_speed_option(run)
     _add_tol_option(run)
