@@ -42,6 +42,9 @@ def test_hand_made_commands():
     np.testing.assert_array_equal(all_held[:, [0, 2, 3, 4]], reference[:, [0, 2, 3, 4]])
     np.testing.assert_array_equal(all_held[:, 1], q[:, 1])
     assert hold_resting_axes(reference, all_held, TOL) is all_held
+    # corrections within the tolerance alone (round-off) are hold_idle_axes' to hold
+    within = reference + np.array([1e-12, 0.0, 0.0, 1e-15, 0.0])
+    assert hold_resting_axes(reference, within, TOL) is within
     # C's round-off of 1e-12 is beyond a tolerance of 1e-13
     assert resting_axes(reference, 1e-13).tolist() == [True, False, True, True, False]
 

@@ -48,23 +48,29 @@ def resting_axes(q_reference: np.ndarray, tolerance) -> np.ndarray:
 
 def hold_resting_axes(q_reference: np.ndarray, q: np.ndarray, tolerance) -> np.ndarray:
     """``q`` with every axis of :func:`resting_axes` set back to its reference command, however
-    large its correction; ``q`` itself (not a copy) when that changes nothing."""
+    large its correction, where one of them departs from it by more than ``tolerance``; ``q``
+    itself (not a copy) otherwise: corrections within the tolerance are
+    :func:`hold_idle_axes`' to hold (round-off there is no reason to learn a variant)."""
     q_reference = np.asarray(q_reference, dtype=float)
-    resting = resting_axes(q_reference, tolerance)
-    if not resting.any() or np.array_equal(q[:, resting], q_reference[:, resting]):
+    tol = np.broadcast_to(np.asarray(tolerance, dtype=float), q_reference.shape[1:])
+    resting = resting_axes(q_reference, tol)
+    if not np.any(np.abs(q[:, resting] - q_reference[:, resting]) > tol[resting]):
         return q
-    held = np.array(q, dtype=float, copy=True)
-    held[:, resting] = q_reference[:, resting]
-    return held
+    return _held(q_reference, q, resting)
 
 
 def hold_idle_axes(q_reference: np.ndarray, q: np.ndarray, tolerance) -> np.ndarray:
     """``q`` with every axis of :func:`idle_axes` set back to its reference command; ``q``
     itself (not a copy) when that changes nothing."""
     q_reference = np.asarray(q_reference, dtype=float)
-    idle = idle_axes(q_reference, q, tolerance)
-    if not idle.any() or np.array_equal(q[:, idle], q_reference[:, idle]):
+    return _held(q_reference, q, idle_axes(q_reference, q, tolerance))
+
+
+def _held(q_reference: np.ndarray, q: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """``q`` with the ``axes`` (mask of shape (5,)) set to ``q_reference``; ``q`` itself (not
+    a copy) when that changes nothing."""
+    if not axes.any() or np.array_equal(q[:, axes], q_reference[:, axes]):
         return q
     held = np.array(q, dtype=float, copy=True)
-    held[:, idle] = q_reference[:, idle]
+    held[:, axes] = q_reference[:, axes]
     return held

@@ -339,11 +339,6 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def hold_resting(q):
         return hold_resting_axes(reference.q, q, idle_tolerance)
 
-    # learning again with the resting axes held, where one carries a correction beyond the
-    # idle tolerance (round-off on an idle axis is no reason to learn twice)
-    q_idle = hold(q_start)
-    variants = (() if hold_resting(q_idle) is q_idle
-                else (("resting axes held", hold_resting),))
     tracking = project(hold(reference.q + _predicted(reference, models, {}).e))
     return learn_at_stops(reference.q, q_start, ts, machine, errors_of,
                           learning_step(reference, path, kinematics, hold=hold),
@@ -354,7 +349,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
                           settle_delays=settle_delays,
                           repeat_actual=getattr(machine_actual, "repeat", None),
-                          variants=variants)
+                          variants=(("resting axes held", hold_resting),))
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):
