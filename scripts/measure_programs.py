@@ -46,6 +46,7 @@ DEMO_FOLDERS = (
     "table-rotary-tilting/demos",
 )
 PROGRAMS = ("impeller-7bl-xyzac.ngc", "boat-xyzac.ngc")
+CONTROLLERS = ("pid-high", "pid-low")
 #: What the learn section counts, in % of the uncompensated tip error removed on the worst
 #: draw: the targets of issue 21 on the built-in and test paths.
 TARGET_MAX, TARGET_MEAN = 85.0, 95.0
@@ -56,7 +57,6 @@ def find_demo(name: str, demos: Path | None = None) -> Path | None:
     installs its examples (:data:`DEMO_FOLDERS`); None where it is in neither."""
     candidates = ([demos / name] if demos else []) + [Path(d) / name for d in DEMO_FOLDERS]
     return next((c for c in candidates if c.is_file()), None)
-CONTROLLERS = ("pid-high", "pid-low")
 
 
 def reduction(before: float, after: float) -> float:

@@ -468,7 +468,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                 if not tried:
                     break
                 _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
-                on_plain = same and q_cmd is q_full and state is None
+                on_plain = same and q_cmd is q_full
                 if not on_plain:
                     consider_settled(label, q_cmd, state)
     linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
@@ -497,9 +497,10 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                   if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
         # a command tried under two labels (a line-searched whole step on the plain track) is
         # repaired once
-        seen = set()
-        order = [entry for entry in order
-                 if not (id(entry[1]) in seen or seen.add(id(entry[1])))]
+        unique = {}
+        for entry in order:
+            unique.setdefault(id(entry[1]), entry)
+        order = list(unique.values())
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
                   if accepted[i][1] is not q_reference]
 
