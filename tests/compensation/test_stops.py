@@ -251,16 +251,22 @@ def _toy_errors(q_act):
                          orientation_parameter=np.zeros_like(tip))
 
 
+def _toy_commands(x_linear: float) -> tuple[np.ndarray, np.ndarray]:
+    """A toy reference resting 10 um off in X (400 samples) and a linear command resting
+    ``x_linear`` (mm) off."""
+    q_ref = np.zeros((400, 5))
+    q_ref[:, 0] = 10e-3
+    q_linear = np.zeros((400, 5))
+    q_linear[:, 0] = x_linear
+    return q_ref, q_linear
+
+
 def test_the_command_kept_is_the_one_whose_worst_draw_is_best():
     """Two draws of a toy machine, the second 4 um off in X: the linear command (2 um; 6 um
     on the second draw) is best on the first draw, the learned one (2.5 um; 1.5 um) on its
     worst draw. With both draws the learned one is kept, with the first alone the linear."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 2e-3
-    q_learned = np.zeros((n, 5))
+    q_ref, q_linear = _toy_commands(2e-3)
+    q_learned = np.zeros_like(q_ref)
     q_learned[:, 0] = -2.5e-3
 
     def two_draws(q):
@@ -284,11 +290,7 @@ def test_the_command_kept_is_the_one_whose_worst_draw_is_best():
 def test_a_diverging_update_is_not_kept_and_raises_nothing():
     """A learning update that is not finite, or whose motion on the machine is not, is not
     kept, and nothing learns from it; the machine is never run on a non-finite command."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 2e-3
+    q_ref, q_linear = _toy_commands(2e-3)
     ran = []
 
     def machine(q):
@@ -321,11 +323,7 @@ def test_a_command_worse_in_whole_on_one_draw_is_repaired_where_it_hurts():
     and is kept: the whole max equals the uncompensated one (the block that fell back), the
     mean is far below it, and no block is worse. Before, such a command was never repaired
     and the uncompensated one came back."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 1e-3
+    q_ref, q_linear = _toy_commands(1e-3)
     q_linear[300:, 0] = 12e-3
 
     def two_draws(q):
@@ -355,12 +353,8 @@ def test_a_block_within_the_uncompensated_repeatability_is_not_worse():
     its last block by 3 um: a linear command 2 um worse there than the uncompensated command
     is kept as it is, nowhere worse; without the rerun it falls back there. The rerun costs
     one run of the draws, counted."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
+    q_ref, q_linear = _toy_commands(1e-3)
     q_ref[300:, 0] = 1e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 1e-3
     q_linear[300:, 0] = 3e-3
 
     def again(q):
@@ -390,11 +384,7 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
     held, learned again from the held linear command, leaves 1 um on both draws and is kept,
     labelled with the variant's name; every iterate of the variant holds Y. A variant that
     changes nothing learns nothing again."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 1e-3
+    q_ref, q_linear = _toy_commands(1e-3)
     q_linear[:, 1] = 1e-6
     tried = []
 
@@ -437,11 +427,7 @@ def test_the_line_search_on_the_plain_track_does_not_run_the_plain_iterate_again
     line-searched sequence stays on the plain one, and its whole steps are the plain iterates
     themselves (the same arrays, the same judgements) with no machine run: 1 (reference) +
     1 (linear) + 3 (plain passes) + 3 (half steps) runs for 11 candidates."""
-    n = 400
-    q_ref = np.zeros((n, 5))
-    q_ref[:, 0] = 10e-3
-    q_linear = np.zeros((n, 5))
-    q_linear[:, 0] = 4e-3
+    q_ref, q_linear = _toy_commands(4e-3)
     runs = []
 
     def machine(q):
