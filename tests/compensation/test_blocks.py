@@ -200,6 +200,31 @@ def test_when_nothing_helps_the_planned_command_is_taken_everywhere():
     assert same is q_ref and none.rounds == 0 and not none.blocks
 
 
+def test_a_round_that_hurts_in_more_blocks_ends_the_fallback():
+    """Where a round's blends leave more blocks hurting than before it (here its neighbours:
+    every blend into line 14 makes lines 13-15 5 um worse), the fallback gives up at once:
+    the planned command everywhere after one judgement, not after every option (issue 21's
+    LinuxCNC impeller: 13 s of fallbacks that grew and failed)."""
+    q_ref = np.zeros((N, 5))
+    q_ref[:, 0] = 1e-3
+    q = np.zeros((N, 5))
+    q[400:500, 0] = 5e-3
+    calls = []
+
+    def spreading(q_try):
+        calls.append(1)
+        if np.array_equal(q_try, q_ref) or q_try is q:
+            return _toy_judge(q_try)
+        line = np.arange(N)[:, None] // 100
+        return _toy_judge(np.where((line >= 3) & (line <= 5), 5e-3, np.zeros((N, 5))))
+
+    judged, reference = spreading(q), spreading(q_ref)
+    calls.clear()
+    fixed, judged, report = blocks.fall_back(q, judged, q_ref, reference, spreading, STARTS,
+                                             TS)
+    assert report.everywhere and fixed is q_ref and report.rounds == 1 and len(calls) == 1
+
+
 def test_a_non_finite_judgement_is_nowhere_admissible():
     reference = _toy_judge(np.zeros((N, 5)))
     bad = blocks.not_finite(1, STARTS.size)
