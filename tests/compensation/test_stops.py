@@ -205,18 +205,21 @@ def test_the_line_search_damps_the_overshoot_at_interior_reversals(machine, monk
     """With pid-high the plain learning update overshoots at this path's interior reversals
     and keeps 21 % of the max tip error (at 0.98 s); the line-searched sequence keeps far
     less, never worse anywhere. Over 10 draws (:func:`conftest.nanometre_draws`), learning on
-    the ensemble of machines, the plain sequence kept 0.205-0.206 on every draw, the line
-    search 0.0885 on 8 of them and 0.149 and 0.154 on two (issue 13's 85 % missed there; on
-    the realistic machine alone 0.089-0.136); the worst of :data:`conftest.FRICTION_DRAWS`
-    is asserted <= 0.16."""
+    the ensemble of machines, the plain sequence alone kept 0.205-0.206 on every draw; with
+    the line search 0.0885 on 8 of them and 0.149 and 0.154 on two (issue 13's 85 % missed
+    there; on the realistic machine alone 0.089-0.136), and with the worst draw's own update
+    too 0.078 on 4, 0.0885 on 4, 0.136 and 0.157 on two (oldest allowed versions: at most
+    0.136); the worst of :data:`conftest.FRICTION_DRAWS` (0.157) is asserted <= 0.17, the
+    plain sequence's > 0.15."""
     for path in nanometre_draws(_fan_reversals()):
         traj = generate_trajectory(path, machine)
         before, plain = _learned_and_reference_errors(traj, machine, monkeypatch,
-                                                      line_search_steps=())
+                                                      line_search_steps=(),
+                                                      worst_draw_steps=())
         assert plain.tip.max() > 0.15 * before.tip.max()                 # the problem
         monkeypatch.undo()
         before, after = _learned_and_reference_errors(traj, machine)
-        assert after.tip.max() <= 0.16 * before.tip.max()                # solved
+        assert after.tip.max() <= 0.17 * before.tip.max()                # solved
         for key, value in after.summary().items():
             assert value <= before.summary()[key]
 
@@ -275,7 +278,7 @@ def test_the_command_kept_is_the_one_whose_worst_draw_is_best():
     def step(q_cmd, q_act, actual):
         return q_learned
 
-    options = dict(passes=1, settle_delays=(), line_search_steps=())
+    options = dict(passes=1, settle_delays=(), line_search_steps=(), worst_draw_steps=())
     q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step, **options)
     assert q is q_learned and report.chosen == "pass 1" and report.draws == 2
     assert report.kept["tip_max_um"] == pytest.approx(2.5)
@@ -285,6 +288,81 @@ def test_the_command_kept_is_the_one_whose_worst_draw_is_best():
     q, report = learn_at_stops(q_ref, q_linear, 1e-3, lambda q: two_draws(q)[0], _toy_errors,
                                step, **options)
     assert q is q_linear and report.chosen == "linear" and report.draws == 1
+
+
+def test_the_worst_draws_own_update_is_tried_and_kept_where_its_worst_draw_is_best():
+    """Two draws of a toy machine, the second answering 2 x + 1 um to a command x (a gain and
+    an offset the model does not have), the update x - x_actual. Learned from the draws' mean
+    motion, pass 1 (x = -1.5 um) leaves 1.5 and 2 um. A quarter of the update learned from the
+    worst draw alone moves to x = -1 um: 1 um on both, so it is kept. The motion its update
+    learns from is run on the machine model's one-draw model where it has one, on every draw
+    otherwise. With a single machine there is no such update."""
+    q_ref, q_linear = _toy_commands(2e-3)
+    one_draw_runs = []
+
+    def two_draws(q):
+        return np.stack([q, 2 * q + np.array([1e-3, 0, 0, 0, 0])])
+
+    def draw(q, index):
+        one_draw_runs.append(index)
+        return two_draws(q)[index]
+
+    def step(q_cmd, q_act, actual):
+        return q_cmd - q_act
+
+    options = dict(passes=1, settle_delays=(), line_search_steps=())
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step, **options)
+    assert report.chosen == "pass 1, then draw 1's update (step 0.25)"
+    np.testing.assert_allclose(q[:, 0], -1e-3, rtol=1e-12)
+    assert [d["tip_max_um"] for d in report.kept_draws] == pytest.approx([1.0, 1.0])
+    # uncompensated, linear, pass 1, the refined command: 2 draws each; the motion of pass 1
+    # its update learns from (this toy update runs no other command)
+    assert report.machine_runs == 2 * 4 + 2
+    two_draws.draw = draw
+    q_again, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
+                                     **options)
+    np.testing.assert_array_equal(q_again, q)
+    assert one_draw_runs == [1] and report.machine_runs == 2 * 4 + 1
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, lambda q: two_draws(q)[1], _toy_errors,
+                               step, **options)
+    assert "then draw" not in " ".join(c.label for c in report.candidates)
+
+
+def test_the_worst_draws_update_keeps_its_origins_variant_and_settled_tail():
+    """The toy machine above, where X matters until sample 100 and must then rest at the
+    reference's 10 um, and a command that moves Y makes the second draw 4 um worse in X: the
+    best command before the worst draw's update is a held and settled one, and the update
+    from it keeps Y held and its tail settled (both exactly), and is kept as it is."""
+    q_ref, q_linear = _toy_commands(2e-3)
+    q_linear[:, 1] = 1e-6
+    early = np.arange(400) < 100
+
+    def errors_of(q_act):
+        return _toy_errors(np.where(early[:, None], q_act, q_act - q_ref))
+
+    def two_draws(q):
+        second = q + np.where(early[:, None], q + np.array([1e-3, 0, 0, 0, 0]), 0.0)
+        if np.any(q[:, 1] != q_ref[:, 1]):
+            second[:, 0] += 4e-3
+        return np.stack([q, second])
+
+    def step(q_cmd, q_act, actual):     # learns X early on, moves Y and the tail's X
+        return (q_cmd + [0, 1e-6, 0, 0, 0]
+                - np.where(early[:, None], q_act * [1, 0, 0, 0, 0], [-1e-3, 0, 0, 0, 0]))
+
+    def hold_y(q):
+        held = q.copy()
+        held[:, 1] = q_ref[:, 1]
+        return held
+
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, errors_of, step, passes=1,
+                               settle_delays=(0.1,), line_search_steps=(),
+                               variants=(("Y held", hold_y),))
+    assert report.chosen.endswith(", Y held, then draw 1's update (step 0.25)"), report.chosen
+    assert "settled 100 ms" in report.chosen
+    np.testing.assert_array_equal(q[:, 1], q_ref[:, 1])
+    np.testing.assert_array_equal(q[100:], np.broadcast_to(q_ref[-1], (300, 5)))
+    assert report.fallback is None
 
 
 def test_a_diverging_update_is_not_kept_and_raises_nothing():
@@ -405,7 +483,7 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
         held[:, 1] = q_ref[:, 1]
         return held
 
-    options = dict(passes=1, settle_delays=(), line_search_steps=())
+    options = dict(passes=1, settle_delays=(), line_search_steps=(), worst_draw_steps=())
     q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
                                variants=(("Y held", hold_y),), **options)
     labels = [c.label for c in report.candidates]

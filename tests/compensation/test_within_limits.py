@@ -361,18 +361,19 @@ def test_resting_axis_held_where_its_correction_slips(machine, tmp_path):
     rows worse than uncompensated beyond the block margins. Learning also learns the variant
     with X held at its reference (``hold_resting_axes``). Measured on 5 nanometre draws of the
     CL points (3 here): each kept a held command, nowhere worse within the block margins
-    alone (checked independently, draw by draw and row by row), its worst draw's mean and
-    max 5.9 % of the uncompensated on every input draw (the max is a fallback's: at the
-    start every command was worse in orientation than uncompensated, and the correction
-    tapers in there), hence the bounds 0.07."""
+    alone (checked independently, draw by draw and row by row; with the newest versions every
+    draw kept "pass 3, resting axes held, then draw 3's update (step 0.25)"), its worst
+    draw's max 0.82 % and mean 4.58 % of the uncompensated on every input draw, hence the
+    bounds 0.03 and 0.06. (Before the worst draw's own update, the held commands were worse
+    at the start in orientation, and a fallback's taper left 5.9 % of both.)"""
     ensemble = MachineEnsemble()
     for draw, result in _circle_pid_low_learned(tmp_path, draws=3):
         report = result.limited.result.learning
-        assert report.chosen.split(", fell back")[0].endswith("resting axes held"), report.chosen
+        assert "resting axes held" in report.chosen.split(", fell back")[0], report.chosen
         q = result.limited.result.trajectory.q
         np.testing.assert_array_equal(q[:, 0], result.limited.reference.q[:, 0])
-        for key in ("tip_max_um", "tip_mean_um"):
-            assert report.kept[key] <= 0.07 * report.uncompensated[key], (key, report.kept)
+        for key, bound in (("tip_max_um", 0.03), ("tip_mean_um", 0.06)):
+            assert report.kept[key] <= bound * report.uncompensated[key], (key, report.kept)
         if draw == 0:
             assert _nowhere_worse_on_every_draw(result.limited.reference, q, machine,
                                                 "pid-low", ensemble,

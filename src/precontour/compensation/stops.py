@@ -17,8 +17,10 @@ with its final-dwell tail settled (held exactly at the end position from a delay
 on, so that a slowly creeping command does not switch the friction feed-forward on). Both
 sequences may be learned again in variants of the commands (every axis the reference never
 moves held at its reference, where the linear passes corrected one), whose iterates compete
-with the others. Where the commands must keep the axis limits, each update and settling is
-smoothed and a command beyond a limit is not kept.
+with the others. On an ensemble, the best admissible command of them all then takes a
+fraction of the update learned from its worst draw alone, which competes too (as it is: it is
+not made to fall back locally). Where the commands must keep the
+axis limits, each update and settling is smoothed and a command beyond a limit is not kept.
 
 Where static friction holds an axis is decided by nanometres, so a choice taken on one exact
 simulation is a coin toss (issue 21: on `paper` / `pid-high` the command kept left 0.48, 0.51,
@@ -48,7 +50,7 @@ from ..errors import PrecontourError
 from ..files import check_signals
 from .blocks import (PROGRAM_MARGIN, SUMMARY_KEYS, TIE, Fallback, best,
                      block_starts, fall_back, improves, judge, not_finite, repaired_score,
-                     splice_errors, whole_ok, with_repeatability, worse_blocks)
+                     score, splice_errors, whole_ok, with_repeatability, worse_blocks)
 
 # DEFAULT_LEARNING_PASSES (CLI ``compensate --learn``) is defined in precontour.defaults.
 #: Delays after the final stop (s) from which an iterate's tail is settled, tried per iterate:
@@ -87,6 +89,16 @@ LINE_SEARCH_STEPS: tuple[float, ...] = (0.5, 1.0)
 #: and learning still removed 89.0 % of the max tip error on `fan25` and 98.7 % on `paper`
 #: (linear pass 72.6 and 88.2 %).
 LIMITED_SMOOTHING = 0.003
+#: Steps (fractions of the update) along the update learned from the worst draw alone, tried
+#: from the best admissible command of both sequences once they are done. Why: an update
+#: learns from the draws' mean motion, so the sequences converge on the mean machine, and what
+#: the worst draw has that the mean machine has not stays (on `cone` / `pid-low`, draw 3's A
+#: friction 0.7 / 1.7 % below the feed-forward's leaves about 45 urad at A's reversals
+#: whatever the pass; a quarter of one update from draw 3 removes 95.3 % of the mean tip error
+#: on every draw, half of one 94.1 %). It is kept only where its worst draw wins, which may
+#: cost the machine file's machine: with `compensate --learn`, `fan` / `pid-high` 2.83 -> 4.09
+#: um there (flank 2.49 -> 1.28 um). Measured: docs/learning.md.
+WORST_DRAW_STEPS: tuple[float, ...] = (0.25,)
 #: Candidates that :func:`learn_at_stops` makes fall back locally, in each of two groups: the
 #: admissible ones that hurt somewhere block by block (the best by their worst draw), then
 #: those worse in whole on some draw (the best by their estimated mended worst draw,
@@ -134,8 +146,11 @@ class LearningReport:
         Label of the command kept: ``"uncompensated"``, ``"linear"`` (the linear passes'
         result), ``"pass n"`` (plain update) or ``"line-searched pass n (step s)"``, optionally
         with ``", settled d ms"``, then the name of the variant it was learned in (e.g.
-        ``", resting axes held"``), and ``", fell back in n block(s)"`` where it gave way
-        locally (:attr:`fallback`).
+        ``", resting axes held"``), then either ``", then draw d's update (step s)"`` where
+        it took a step along the update learned from its worst draw
+        (:data:`WORST_DRAW_STEPS`), or ``", fell back in n block(s)"`` where it gave way
+        locally (:attr:`fallback`), optionally with ``", within 1 % of the uncompensated
+        max"`` (the second chance, :data:`~.blocks.PROGRAM_MARGIN`).
     uncompensated, linear, kept : dict
         Contour errors on the machine model (``ContourErrors.summary``) of the reference
         command, of the linear compensation, and of the command kept: per key the worst over
@@ -201,7 +216,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    fallbacks: Sequence[tuple[str, np.ndarray]] = (), update: str = "mean",
                    local: bool = True, t0: float = 0.0,
                    tail_errors_of=None, repeat_actual: MachineActual | None = None,
-                   variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = ()
+                   variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
+                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS
                    ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
@@ -225,7 +241,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         Sample period, s.
     machine_actual : callable
         The machine model, commands (N, 5) -> actual axis positions (N, 5), or (D, N, 5) for
-        an ensemble of D draws.
+        an ensemble of D draws; ``machine_actual.draw(q, d)``, where given, draw ``d``'s
+        alone (N, 5) (:func:`~precontour.simulation.ensemble_actual`).
     errors_of : callable
         Actual axis positions (N, 5) -> ``ContourErrors`` against the reference.
     contour_step : callable
@@ -278,6 +295,13 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         the projected ``q_linear``, every iterate projected, their labels ending with the
         name; every candidate of every variant competes for being kept. A projection that
         leaves ``q_linear`` as it is adds nothing.
+    worst_draw_steps : tuple of float
+        Steps along the update learned from the worst draw alone, tried from the best
+        admissible command once both sequences of every variant are done (an ensemble only;
+        empty: none), :data:`WORST_DRAW_STEPS`. Such a command is kept as it is or not at all:
+        it is neither made to fall back locally (mending it would spend a fallback's
+        judgements on a command that only refines one the fallback already tries) nor
+        another's fallback in a block.
 
     Returns
     -------
@@ -305,7 +329,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         if motion.ndim == 2:
             motion = motion[None]
         runs += motion.shape[0]
-        draws = motion.shape[0]
+        if model is machine_actual:
+            draws = motion.shape[0]
         return motion if np.all(np.isfinite(motion)) else None
 
     def learned_from(motion):
@@ -387,17 +412,42 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         blocks_ok = ok and not worse_blocks(judged, reference).any()
         entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok, judged.median,
                                           repairable), q, judged))
+        if project is not None:
+            projections[id(q)] = project
         if progress is not None:
             progress(label, judged.worst)
         return (None if motion is None else learned_from(motion)), (motion, errors)
 
     project = None  # the projection of the variant being learned, if any
+    # By the id of a command tried (entries keep every one alive, so no id is reused): the
+    # projection of the variant it was learned in, and where its tail is settled from
+    projections = {}
+    settled = {}
 
-    def step_from(q_cmd, q_act):
-        """The next iterate, or None when the update diverged."""
+    def alone(draw):
+        """The machine model's draw ``draw`` alone as the contour step's machine (one motion
+        per command, not finite where it diverged), on its one-draw model where it has one."""
+        one = getattr(machine_actual, "draw", None)
+
+        def one_draw(q_cmd):
+            return one(q_cmd, draw)
+
+        def motion(q):
+            motions = run(q) if one is None else run(q, one_draw)
+            if motions is None:
+                return np.full(q.shape, np.nan)
+            return motions[draw] if one is None else motions[0]
+        return motion
+
+    def step_from(q_cmd, q_act, model=None):
+        """The next iterate, or None when the update diverged; ``model``: the machine the
+        update learns from where not ``actual`` (the motion of ``q_cmd`` then run here)."""
         try:
             with np.errstate(all="ignore"):
-                q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+                if model is None:
+                    q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
+                else:
+                    q_new = towards(q_cmd, contour_step(q_cmd, model(q_cmd), model))
                 if project is not None:
                     q_new = project(q_new)
         except PrecontourError:
@@ -406,8 +456,9 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
 
     def consider_settled(label, q, like):
         for delay, start in settle_starts:
-            consider(f"{label}, settled {1e3 * delay:.0f} ms",
-                     towards(q, settle_final_dwell(q, q_reference, start)), like)
+            q_settled = towards(q, settle_final_dwell(q, q_reference, start))
+            settled[id(q_settled)] = start
+            consider(f"{label}, settled {1e3 * delay:.0f} ms", q_settled, like)
 
     entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
                                       reference.median), q_reference, reference))
@@ -471,6 +522,29 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                 on_plain = same and q_cmd is q_full
                 if not on_plain:
                     consider_settled(label, q_cmd, state)
+    # The worst draw's own update: from the best admissible command so far, a fraction of the
+    # update learned from the motion of its worst draw alone, per step of worst_draw_steps.
+    # The ids of the commands it tries: kept as they are or not at all (neither mended nor
+    # taken in a block by another's fallback).
+    refinements = set()
+    if draws > 1 and passes > 0 and worst_draw_steps:
+        so_far = [entry for entry in entries if entry[0].accepted]
+        origin, q_origin, judged_origin = so_far[best([entry[2] for entry in so_far])]
+        if q_origin is not q_reference:
+            worst_draw = int(np.argmax([score(s) for s in judged_origin.summaries]))
+            # learned as its own variant was, its tail settled where its own was
+            suffix, project = "", projections.get(id(q_origin))
+            settled_from = settled.get(id(q_origin))
+            q_update = step_from(q_origin, None, alone(worst_draw))
+            for step in ([] if q_update is None else worst_draw_steps):
+                with np.errstate(all="ignore"):
+                    # (both held where the variant holds: so is their combination)
+                    q_try = q_origin + step * (q_update - q_origin)
+                if settled_from is not None:
+                    q_try = towards(q_try, settle_final_dwell(q_try, q_reference, settled_from))
+                consider(f"{origin.label}, then draw {worst_draw}'s update (step {step:g})",
+                         q_try)
+                refinements.add(id(q_try))
     linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
     accepted = [entry for entry in entries if entry[0].accepted]
     ranks = np.array([entry[2].score for entry in accepted])
@@ -483,15 +557,16 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     # worse on one draw's max kept the uncompensated command with no fallback tried). They
     # are ranked by their estimated mended worst draw (blocks.repaired_score) and tried after
     # the admissible ones.
-    unadmitted = [entry for entry in entries if entry[0].repairable and not entry[0].accepted]
+    unadmitted = [entry for entry in entries if entry[0].repairable and not entry[0].accepted
+                  and id(entry[1]) not in refinements]
     if local and (not kept[0].blocks_ok or (kept[1] is q_reference and unadmitted)):
         # The best candidates that hurt somewhere fall back there; the best of them is kept
         # if it beats the best candidate that needed no fallback. Several are tried because
         # where a fallback lands (a stop, the final dwell) decides what it costs.
         safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
         order = [accepted[i] for i in np.argsort(ranks, kind="stable")
-                 if ranks[i] <= safe_rank * (1.0 + TIE)
-                 and not accepted[i][0].blocks_ok][:REPAIRED_CANDIDATES]
+                 if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok
+                 and id(accepted[i][1]) not in refinements][:REPAIRED_CANDIDATES]
         estimates = np.array([repaired_score(entry[2], reference) for entry in unadmitted])
         order += [unadmitted[i] for i in np.argsort(estimates, kind="stable")
                   if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
@@ -502,7 +577,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             unique.setdefault(id(entry[1]), entry)
         order = list(unique.values())
         ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
-                  if accepted[i][1] is not q_reference]
+                  if accepted[i][1] is not q_reference and id(accepted[i][1]) not in refinements]
 
         def repair(entry, alternatives=(), program_margin=0.0):
             """``entry`` fallen back where it hurts (:func:`~.blocks.fall_back`): its entry

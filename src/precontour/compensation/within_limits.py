@@ -336,6 +336,10 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def machine(q):
         return machine_actual(q if q is reference.q else project(q))
 
+    if hasattr(machine_actual, "draw"):
+        machine.draw = lambda q, index: machine_actual.draw(
+            q if q is reference.q else project(q), index)
+
     def hold_resting(q):
         return hold_resting_axes(reference.q, q, idle_tolerance)
 

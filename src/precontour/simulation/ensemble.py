@@ -213,9 +213,9 @@ def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | st
                     ensemble: MachineEnsemble | None = None, *, start: int = 0):
     """The ensemble's machines at the times ``t`` as a model ``actual(q) -> q_act`` of
     commands (N, 5) to one actual motion per draw (D, N, 5), the draws run side by side
-    (:func:`~.virtual_machine.simulate_draws`). ``ensemble`` defaults to
-    :class:`MachineEnsemble` (); ``start``: the program's sample at ``t[0]`` (a stretch of a
-    longer program reads that stretch's encoder noise)."""
+    (:func:`~.virtual_machine.simulate_draws`); ``actual.draw(q, d)``: draw ``d``'s alone.
+    ``ensemble`` defaults to :class:`MachineEnsemble` (); ``start``: the program's sample at
+    ``t[0]`` (a stretch of a longer program reads that stretch's encoder noise)."""
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     t = np.asarray(t, dtype=float)
     rotary = [d.is_rotary for d in machine.drives]
@@ -225,6 +225,13 @@ def ensemble_actual(t: np.ndarray, machine: Machine, controller: Controller | st
         return simulate_draws(t, q, machine, controller, options, **REALISTIC)
 
     actual.ensemble = ensemble
+
+    # one draw alone, (N, 5): what learning's update from the worst draw runs
+    # (compensation.stops.WORST_DRAW_STEPS), at one draw's cost
+    def draw(q: np.ndarray, index: int) -> np.ndarray:
+        return simulate_draws(t, q, machine, controller, [options[index]], **REALISTIC)[0]
+
+    actual.draw = draw
     # the same machines run again (their encoder noise re-drawn), for the repeatability of
     # the uncompensated command's errors (compensation.blocks.with_repeatability); None where
     # a rerun is the same run
