@@ -19,8 +19,8 @@ sequences may be learned again in variants of the commands (every axis the refer
 moves held at its reference, where the linear passes corrected one), whose iterates compete
 with the others. On an ensemble, the best admissible command of them all then takes a
 fraction of the update learned from its worst draw alone, which competes too (as it is: it is
-not made to fall back locally). Where the commands must keep the
-axis limits, each update and settling is smoothed and a command beyond a limit is not kept.
+not made to fall back locally). Where the commands must keep the axis limits, each update and
+settling is smoothed and a command beyond a limit is not kept.
 
 Where static friction holds an axis is decided by nanometres, so a choice taken on one exact
 simulation is a coin toss (issue 21: on `paper` / `pid-high` the command kept left 0.48, 0.51,
@@ -454,11 +454,15 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             return None
         return q_new if np.all(np.isfinite(q_new)) else None
 
+    def settle(q, start):
+        """``q`` with its tail settled from sample ``start`` on (smoothed as updates are)."""
+        q_settled = towards(q, settle_final_dwell(q, q_reference, start))
+        settled[id(q_settled)] = start
+        return q_settled
+
     def consider_settled(label, q, like):
         for delay, start in settle_starts:
-            q_settled = towards(q, settle_final_dwell(q, q_reference, start))
-            settled[id(q_settled)] = start
-            consider(f"{label}, settled {1e3 * delay:.0f} ms", q_settled, like)
+            consider(f"{label}, settled {1e3 * delay:.0f} ms", settle(q, start), like)
 
     entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
                                       reference.median), q_reference, reference))
@@ -541,7 +545,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                     # (both held where the variant holds: so is their combination)
                     q_try = q_origin + step * (q_update - q_origin)
                 if settled_from is not None:
-                    q_try = towards(q_try, settle_final_dwell(q_try, q_reference, settled_from))
+                    q_try = settle(q_try, settled_from)
                 consider(f"{origin.label}, then draw {worst_draw}'s update (step {step:g})",
                          q_try)
                 refinements.add(id(q_try))

@@ -333,12 +333,16 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)
 
+    def run_as(q):
+        """The command in fact run for ``q``: the uncompensated one as it is, others
+        projected."""
+        return q if q is reference.q else project(q)
+
     def machine(q):
-        return machine_actual(q if q is reference.q else project(q))
+        return machine_actual(run_as(q))
 
     if hasattr(machine_actual, "draw"):
-        machine.draw = lambda q, index: machine_actual.draw(
-            q if q is reference.q else project(q), index)
+        machine.draw = lambda q, index: machine_actual.draw(run_as(q), index)
 
     def hold_resting(q):
         return hold_resting_axes(reference.q, q, idle_tolerance)
