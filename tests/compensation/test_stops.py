@@ -500,6 +500,47 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
     assert [c.label for c in report.candidates] == ["uncompensated", "linear", "pass 1"]
 
 
+def test_a_variant_that_holds_what_only_the_updates_move_is_learned_from_the_linear_motion():
+    """The linear command already holds the resting axis Y, but the update moves Y again (it
+    learns from every axis's motion): the variant with Y held is learned all the same, from
+    the linear command's judgement and motion (not run again, no second "linear" candidate),
+    and its pass, which holds Y, leaves 1 um where the plain pass slips to 5 um on the second
+    draw. Before, a variant whose projection left the linear command as it was was skipped,
+    and the Y-moving passes were the only ones learned (on `circle` / `pid-high`, X slipped
+    44 um on one draw)."""
+    q_ref, q_linear = _toy_commands(1e-3)
+    tried = []
+
+    def two_draws(q):
+        tried.append(q)
+        second = q.copy()
+        if np.any(q[:, 1] != q_ref[:, 1]):
+            second[:, 0] += 4e-3
+        return np.stack([q, second])
+
+    def step(q_cmd, q_act, actual):
+        return q_cmd + np.array([0, 1e-6, 0, 0, 0])    # the update moves Y
+
+    def hold_y(q):
+        if np.array_equal(q[:, 1], q_ref[:, 1]):
+            return q
+        held = q.copy()
+        held[:, 1] = q_ref[:, 1]
+        return held
+
+    q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
+                               variants=(("Y held", hold_y),), passes=2, settle_delays=(),
+                               line_search_steps=(), worst_draw_steps=())
+    summaries = {c.label: c.summary["tip_max_um"] for c in report.candidates}
+    assert list(summaries) == ["uncompensated", "linear", "pass 1", "pass 2",
+                               "pass 1, Y held", "pass 2, Y held"]
+    assert summaries["pass 1"] == pytest.approx(5.0)
+    assert summaries["pass 1, Y held"] == pytest.approx(1.0)
+    assert report.machine_runs == 2 * 6         # the linear command run once
+    assert all(np.array_equal(q[:, 1], q_ref[:, 1]) for q in tried[-2:])
+    assert report.kept["tip_max_um"] == pytest.approx(1.0)
+
+
 def test_the_line_search_on_the_plain_track_does_not_run_the_plain_iterate_again():
     """A toy update that halves X's error: the whole step is better at every pass, so the
     line-searched sequence stays on the plain one, and its whole steps are the plain iterates

@@ -294,7 +294,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         :func:`~.idle_axes.hold_resting_axes`): for each, both sequences are learned again from
         the projected ``q_linear``, every iterate projected, their labels ending with the
         name; every candidate of every variant competes for being kept. A projection that
-        leaves ``q_linear`` as it is adds nothing.
+        leaves ``q_linear`` and the first plain pass as they are adds nothing.
     worst_draw_steps : tuple of float
         Steps along the update learned from the worst draw alone, tried from the best
         admissible command once both sequences of every variant are done (an ensemble only;
@@ -466,14 +466,24 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
 
     entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
                                       reference.median), q_reference, reference))
-    # Each variant learns both sequences again from its projection of q_linear.
+    # Each variant learns both sequences again from its projection of q_linear. One that
+    # leaves q_linear as it is starts from the linear command's judgement (not run again),
+    # and adds nothing where it leaves the first plain pass as it is too: a resting axis that
+    # the linear passes held may still be moved by the updates, which learn from every
+    # axis's actual motion (on `circle` / `pid-high` pass 1 moved X, which the reference
+    # never moves, by up to 1.4 um, and X slipped 44 um on one draw).
+    main = None     # the main sequence's linear motion and first plain iterate
     for name, projection in (("", None), *variants):
         q_first = q_linear if projection is None else projection(q_linear)
-        if projection is not None and q_first is q_linear:
+        if projection is not None and q_first is q_linear and (
+                main[2] is None or projection(main[2]) is main[2]):
             continue
         suffix, project = (f", {name}" if name else ""), projection
-        q_act_linear, linear_state = consider("linear", q_first)
-        consider_settled("linear", q_first, linear_state)
+        if projection is not None and q_first is q_linear:
+            q_act_linear, linear_state = main[0], main[1]
+        else:
+            q_act_linear, linear_state = consider("linear", q_first)
+            consider_settled("linear", q_first, linear_state)
         # The plain sequence: each pass applies the whole update. A sequence that diverges (an
         # iterate not finite, or refused by the machine model) ends there: what it tried before
         # stays a candidate, the diverged iterate is never kept.
@@ -488,6 +498,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                 break
             plain.append((q_cmd, entries[-1], q_act))
             consider_settled(f"pass {k}", q_cmd, state)
+        if projection is None:
+            main = (q_act_linear, linear_state, plain[0][0] if plain else None)
         # The line-searched sequence: each pass continues from the best step along the update,
         # best on its worst draw. While it has taken the whole update at every pass, its whole
         # step is the plain iterate itself: that iterate's judgement is taken, not run again,
