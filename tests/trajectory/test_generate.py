@@ -124,3 +124,49 @@ def test_errors_reach_the_caller(machine):
         builtin_path("circle", radus=3)
     with pytest.raises(InputError, match="field 'radius': radius must be > 0 mm, got -1"):
         builtin_path("circle", radius=-1)
+
+
+def _distance_to_polyline(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Distance of each of ``points`` to the polyline through ``corners``."""
+    best = np.full(points.shape[0], np.inf)
+    for a, b in zip(corners[:-1], corners[1:]):
+        ab = b - a
+        u = np.clip((points - a) @ ab / (ab @ ab), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(a + u[:, None] * ab - points, axis=1))
+    return best
+
+
+def test_a_polyline_of_cl_points_is_followed_with_a_stop_at_each_corner(machine):
+    """Four points of a 40 x 4 mm rectangle's three sides, the tool vertical (APT GOTOs are
+    straight moves): the tool tip stays on the polyline (one spline through the four points
+    left it by 23.5 mm), stops at both corners, and the trajectory keeps every limit; the
+    axes continue where they stopped (forward kinematics reproduce the reference)."""
+    corners = np.array([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0], [40.0, 4.0, 0.0], [0.0, 4.0, 0.0]])
+    toolpath = ToolPath(P=corners, O=np.tile([0.2, 0.0, 1.0], (4, 1)) / np.hypot(0.2, 1.0),
+                        source="rectangle")
+    tr = generate_trajectory(toolpath, machine, lines=np.array([11, 12, 13, 14]))
+    assert _distance_to_polyline(tr.P, corners).max() < 1e-9
+    assert _within_limits(tr, machine) and summarize(tr, machine).within_limits
+    P, O = machine.kinematics.forward(tr.q)
+    assert np.abs(P - tr.P).max() < 1e-9 and np.abs(O - tr.O).max() < 1e-9
+    speed = np.linalg.norm(np.diff(tr.P, axis=0), axis=1) / TS
+    for corner in corners[1:3]:
+        at = int(np.argmin(np.linalg.norm(tr.P - corner, axis=1)))
+        assert np.linalg.norm(tr.P[at] - corner) < 1e-9
+        assert speed[at - 1:at + 1].max() < 1e-3 * speed.max()   # in and out of it: at rest
+    # the source line of the point each sample moves to, stretch by stretch
+    assert tr.line[0] == 11 and tr.line[-1] == 14
+    assert set(tr.line[(tr.P[:, 0] > 1.0) & (tr.P[:, 1] == 0.0)]) == {12}
+    assert set(tr.line[(tr.P[:, 0] == 40.0) & (tr.P[:, 1] > 0.1) & (tr.P[:, 1] < 3.9)]) == {13}
+
+
+def test_a_corner_at_a_singular_direction_is_refused_naming_its_row(machine):
+    """A plunge with the tool along the A-C trunnion's C axis, then a move that tilts it: at
+    the corner C is free, and the next stretch starts on another C than the plunge stopped on,
+    so the table would have to turn the part at the corner; refused with the corner's row."""
+    P = np.array([[10.0, -5.0, 40.0], [10.0, -5.0, 20.0], [12.5, -4.0, 19.5],
+                  [15.0, -3.0, 19.0], [17.5, -2.0, 18.5]])
+    tilt = np.radians([0.0, 0.0, 10.0, 20.0, 30.0])
+    O = np.column_stack([np.sin(tilt), np.zeros(5), np.cos(tilt)])
+    with pytest.raises(ToolPathError, match=r"row 2.*singular direction"):
+        generate_trajectory(ToolPath(P=P, O=O, source="plunge"), machine)

@@ -157,3 +157,28 @@ def test_random_paths_interpolate_with_unit_orientation(seed, n):
     s = np.linspace(0, path.length, 501)
     np.testing.assert_allclose(np.linalg.norm(path.orientation(s), axis=1), 1.0, atol=1e-12)
     assert np.all(np.diff(path.s_points) > 0)
+
+
+def test_corner_points_are_sharp_turns_of_the_moves_tip_and_orientation_together():
+    """A turn of 45 degrees or more between the moves into and out of a point makes it a
+    corner (duplicates skipped, the corner at the first of them); a smooth curve's points
+    are none, nor are the built-in paths' (at most 24.6 degrees on `paper`); a pure turn of
+    the tool followed by a move of the tip is one."""
+    from precontour.trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
+    from precontour.trajectory.pathspline import corner_points
+
+    up = np.tile([0.0, 0.0, 1.0], (6, 1))
+    P = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 0, 0], [2, 1, 0], [2.6, 1.8, 0]],
+                 dtype=float)
+    assert corner_points(P, up).tolist() == [2]          # 90 degrees; then 36.9: none
+    assert corner_points(P, up, angle=36.8).tolist() == [2, 4]
+    theta = np.linspace(0.0, np.pi, 50)
+    arc = np.column_stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)])
+    assert corner_points(arc, np.tile([0.0, 0.0, 1.0], (50, 1))).size == 0
+    for name in BUILTIN_PATHS:
+        path = builtin_path(name)
+        assert corner_points(path.P, path.O).size == 0, name
+    # the tip stands while the tool turns by 0.2 rad, then moves 0.2 mm across
+    tip = np.array([[0, 0, 0], [0, 0, 0], [0.2, 0, 0]], dtype=float)
+    turn = np.array([[0, 0, 1], [np.sin(0.2), 0, np.cos(0.2)], [np.sin(0.2), 0, np.cos(0.2)]])
+    assert corner_points(tip, turn).tolist() == [1]

@@ -107,7 +107,8 @@ def axis_limits(machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
               acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
               ts: float = 0.001, programmed_feed=None, grid_step: float | None = None,
-              max_iterations: int = 12, max_samples: int = 50_000_000) -> FeedProfile:
+              max_iterations: int = 12, max_samples: int = 50_000_000,
+              c_near: float | None = None) -> FeedProfile:
     """Plan a jerk-limited feed profile along ``path`` within feed and axis limits.
 
     Parameters
@@ -136,6 +137,10 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
         Planning passes before giving up.
     max_samples : int
         Largest number of samples the plan may have (memory guard).
+    c_near : float, optional
+        The inverse kinematics' branch the path starts on: the one whose C (B on a two-tilt
+        machine) is nearest this (a path that continues another where it stopped); default
+        the kinematics' own choice for a path.
 
     Returns
     -------
@@ -167,7 +172,7 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     h = s_grid[1] - s_grid[0]
 
     feed_of_s = _feed_on_grid(path, s_grid, programmed_feed, feed)
-    geometry = _grid_geometry(path, machine, s_grid)
+    geometry = _grid_geometry(path, machine, s_grid, c_near)
     n_filter = max(1, int(np.ceil(2.0 * acceleration / jerk / ts)))
     reach = 0.5 * n_filter * ts  # a limit is felt over the distance its speed covers in T/2
     _check_continuity(geometry, s_grid)
@@ -180,7 +185,7 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
         v = _acceleration_passes(v_lim, a_lim, h)
         s = _time_law(v, h, ts, n_filter, L, max_samples)
         P, O = path(s)
-        q = machine.kinematics.inverse(P, O)
+        q = machine.kinematics.inverse(P, O, c_near)
         ratio = _violation(s, P, q, ts, feed_of_s, s_grid, lim)
         worst = float(ratio.max(initial=0.0))
         if worst <= 1.0 + CHECK_RTOL:
@@ -233,13 +238,13 @@ def _feed_on_grid(path, s_grid, programmed_feed, feed):
     return pf[seg]
 
 
-def _grid_geometry(path, machine, s_grid):
+def _grid_geometry(path, machine, s_grid, c_near=None):
     """The tool tip's |P'| and |P''| (analytic) and the axes q (path-mode inverse
     kinematics) on the planning grid. The axes' derivatives with respect to s are their
     finite differences, :func:`numpy.gradient` applied up to three times, which the compiled
     limit curves take where they need them (:func:`_slope_first` and the next two)."""
     P, O, dP, ddP = path.sample(s_grid)
-    q = np.ascontiguousarray(machine.kinematics.inverse(P, O))
+    q = np.ascontiguousarray(machine.kinematics.inverse(P, O, c_near))
     return dP, ddP, q
 
 

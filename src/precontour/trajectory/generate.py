@@ -2,8 +2,10 @@
 time-stamped five-axis :class:`~precontour.trajectory.sampled.Trajectory` out.
 
 Glue of two stages: :func:`precontour.trajectory.pathspline.fit_toolpath` (C3 geometric splines) and
-:func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis limits);
-plus :func:`summarize`, the numbers the command line prints about a trajectory.
+:func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis limits),
+once per stretch between the tool path's corners (:func:`~.pathspline.corner_points`: the tool
+stops at each, as at an exact stop); plus :func:`summarize`, the numbers the command line
+prints about a trajectory.
 """
 
 from __future__ import annotations
@@ -13,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..defaults import DEFAULT_DWELL, default_max_samples
-from ..errors import InputError, plain
+from ..errors import InputError, ToolPathError, plain
 from ..machine.drives import AXES
 from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
                        plan_feed)
-from .pathspline import L_EQ, fit_toolpath
+from .pathspline import L_EQ, checked_points, corner_points, fit_path
 from .sampled import Trajectory
 
 
@@ -91,7 +93,9 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
     Trajectory
         ``t`` uniform from 0 with step ``ts``; ``q`` (N, 5) from path-mode inverse kinematics
         (C unwrapped, continuous through A = 0); reference ``P``, ``O`` at each sample;
-        ``line`` when ``lines`` is given. Starts and stops at rest.
+        ``line`` when ``lines`` is given. Starts and stops at rest, and stops at every corner
+        of the tool path (:func:`~.pathspline.corner_points`), between which each stretch is
+        its own spline and feed plan, continuing the axes' branch where the previous stopped.
     """
     for name, value in (("feed", feed), ("ts", ts)):
         if not (np.isfinite(value) and value > 0):
@@ -104,27 +108,78 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
         if lines.shape != (toolpath.n_points,):
             raise ValueError(f"lines must have one entry per tool-path point "
                              f"({toolpath.n_points}), got shape {lines.shape}")
-    path = fit_toolpath(toolpath, l_eq=l_eq)
-    check_sample_estimate(estimate_samples(path.length, feed, ts, dwell), limit,
-                          f"{path.length:.6g} mm of path at most {feed:g} mm/s, sampled every "
+    P_all, O_all = toolpath.P, toolpath.O
+    corners = corner_points(P_all, O_all, l_eq=l_eq)
+    if corners.size:
+        # checked and normalized once here (a stretch's own normalization is then round-off,
+        # silent); a path without corners is fitted as it is, to the last digit
+        P_all, O_all = checked_points(P_all, O_all, source=toolpath.source)
+    bounds = np.concatenate([[0], corners, [toolpath.n_points - 1]])
+    paths = [fit_path(P_all[first:last + 1], O_all[first:last + 1], l_eq=l_eq,
+                      source=toolpath.source, first_row=first)
+             for first, last in zip(bounds[:-1], bounds[1:])]
+    length = sum(path.length for path in paths)
+    check_sample_estimate(estimate_samples(length, feed, ts, dwell), limit,
+                          f"{length:.6g} mm of path at most {feed:g} mm/s, sampled every "
                           f"{ts:g} s, and a {dwell:g} s dwell", source=toolpath.source)
     n_hold = int(round(dwell / ts))
-    profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk, ts=ts,
-                        programmed_feed=toolpath.feed, max_samples=max(1, limit - n_hold))
-    t, q, P, O = profile.t, profile.q, profile.P, profile.O
-    line = None
-    if lines is not None:
-        # the kept point each sample moves to: the first s_points[k] >= s (round-off at the
-        # end clipped to the last point)
-        k = np.minimum(np.searchsorted(path.s_points, profile.s, side="left"),
-                       path.s_points.size - 1)
-        line = lines[path.point_index[k]]
+    pieces = []     # per stretch: q, P, O and line, the first sample dropped after the first
+    budget = max(1, limit - n_hold)
+    c_near = None
+    stopped = None  # the axes where the previous stretch stopped
+    for path, first, last in zip(paths, bounds[:-1], bounds[1:]):
+        feeds = None if toolpath.feed is None else toolpath.feed[first:last + 1]
+        profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk,
+                            ts=ts, programmed_feed=feeds, max_samples=max(1, budget),
+                            c_near=c_near)
+        if stopped is not None:
+            _check_join(stopped, profile.q[0], machine, toolpath.source, first)
+        stopped = profile.q[-1]
+        skip = 1 if pieces else 0     # a stretch starts where the previous stopped
+        part = [profile.q[skip:], profile.P[skip:], profile.O[skip:], None]
+        if lines is not None:
+            # the kept point each sample moves to: the first s_points[k] >= s (round-off at
+            # the end clipped to the last point)
+            k = np.minimum(np.searchsorted(path.s_points, profile.s[skip:], side="left"),
+                           path.s_points.size - 1)
+            part[3] = lines[first + path.point_index[k]]
+        pieces.append(part)
+        budget -= profile.s.size - skip
+        c_near = float(stopped[4])
+    q, P, O = (np.concatenate([part[i] for part in pieces]) for i in range(3))
+    line = None if lines is None else np.concatenate([part[3] for part in pieces])
+    t = np.arange(q.shape[0]) * ts
     if n_hold:
         t = np.concatenate([t, t[-1] + ts * np.arange(1, n_hold + 1)])
         q, P, O = (np.concatenate([a, np.repeat(a[-1:], n_hold, axis=0)]) for a in (q, P, O))
         if line is not None:
             line = np.concatenate([line, np.repeat(line[-1:], n_hold)])
     return Trajectory(t=t, q=q, P=P, O=O, line=line)
+
+
+#: Largest change of an axis (mm or rad) from where one stretch of a tool path stops to where
+#: the next starts, at their corner: the same point on the same branch of the kinematics,
+#: to round-off.
+JOIN_TOLERANCE = 1e-9
+
+
+def _check_join(stopped: np.ndarray, start: np.ndarray, machine, source: str,
+                row: int) -> None:
+    """Refuse a corner where the next stretch's axes do not start where the previous stretch's
+    stopped: its tool orientation is a singular direction of the kinematics (the tool along
+    the C axis of an A-C trunnion, where C is free), from which the next move needs C turned
+    first."""
+    jump = np.abs(np.asarray(start) - np.asarray(stopped))
+    if np.all(jump <= JOIN_TOLERANCE):
+        return
+    axis = int(np.argmax(jump))
+    name = getattr(machine, "axis_names", AXES)[axis]
+    raise ToolPathError(f"axis {name} would jump by {jump[axis]:.6g} "
+                        f"{'mm' if axis < 3 else 'rad'} at the corner: the tool orientation "
+                        "there is a singular direction of the kinematics, from which the next "
+                        "move needs another position of that axis; add points that turn the "
+                        "tool off it before the corner", source=source or None, row=row + 1,
+                        field="O")
 
 
 @dataclass(frozen=True)

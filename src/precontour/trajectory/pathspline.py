@@ -43,6 +43,17 @@ DUPLICATE_TOLERANCE = 1e-6
 #: near the origin and the normalized curve would whip round.
 MAX_ORIENTATION_STEP = np.pi / 2
 
+#: Turn (degrees) between consecutive moves of a tool path, tip and orientation together (the
+#: combined length's chords), at and above which a programmed point is a corner
+#: (:func:`corner_points`): the tool stops there, and the path on each side is its own spline.
+#: Why: an interpolating spline through a corner overshoots it; through a polyline of a few
+#: points it leaves the polyline by far more (APT GOTO points are straight moves: a 40 x 4 mm
+#: rectangle of four GOTOs became a curve 23.5 mm off its sides, a zigzag of 1 mm points 13 um
+#: before each turn). Smooth CL data turn far less between points: the built-in and test paths
+#: at most 24.6 degrees (`paper`, at one point of dense points; 7.9 on `flank`'s 40 points),
+#: while the blade finishing pass of the APT test data plunges and retracts at 79.5 and 100.5.
+CORNER_ANGLE = 45.0
+
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
 #: Segments per task of the compiled segment lengths.
 _CHUNK = 4096
@@ -143,7 +154,35 @@ def _normalized_derivatives(v: list[np.ndarray]) -> list[np.ndarray]:
     return n
 
 
-def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
+def checked_points(P, O, *, source: str = "", first_row: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Programmed tool tips ``P`` and orientations ``O`` as float arrays, the orientations
+    normalized (:func:`~precontour.machine.kinematics.normalize_orientations`, with its one
+    notice), after checking shapes (M, 3), M >= 2 and finite values; a
+    :class:`~precontour.errors.ToolPathError` names the first bad row (``first_row`` + 1 on,
+    as :func:`fit_path`)."""
+    src = source or None
+    P = np.asarray(P, dtype=float)
+    O = np.asarray(O, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 3 or O.shape != P.shape:
+        raise ToolPathError(f"P and O must both have shape (M, 3), got {P.shape} and {O.shape}",
+                            source=src)
+    for name, arr in (("P", P), ("O", O)):
+        bad = ~np.isfinite(arr).all(axis=1)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ToolPathError(f"{name} is not finite ({arr[row].tolist()})", source=src,
+                                row=first_row + row + 1, field=name)
+    if P.shape[0] < 2:
+        raise ToolPathError(f"a tool path needs at least 2 points, got {P.shape[0]}", source=src)
+    try:
+        O = normalize_orientations(O, source=src)
+    except InputError as exc:
+        raise ToolPathError(str(exc)) from None
+    return P, O
+
+
+def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "", first_row: int = 0) -> PathSpline:
     """Fit C3 quintic splines through programmed tool tips and orientations.
 
     Parameters
@@ -157,6 +196,9 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         Equivalent length of one radian of tool rotation, mm/rad (see module docstring).
     source : str
         Name of the tool path, for messages.
+    first_row : int
+        Row (0-based) of the tool path's first point in its file, for messages (a stretch of
+        a longer path; ``point_index`` stays relative to ``P``).
 
     Returns
     -------
@@ -173,25 +215,9 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         than :data:`MAX_ORIENTATION_STEP` between consecutive points.
     """
     src = source or None
-    P = np.asarray(P, dtype=float)
-    O = np.asarray(O, dtype=float)
-    if P.ndim != 2 or P.shape[1] != 3 or O.shape != P.shape:
-        raise ToolPathError(f"P and O must both have shape (M, 3), got {P.shape} and {O.shape}",
-                            source=src)
     if not l_eq > 0 or not np.isfinite(l_eq):
         raise ValueError(f"l_eq must be a positive finite length in mm/rad, got {plain(l_eq)!r}")
-    for name, arr in (("P", P), ("O", O)):
-        bad = ~np.isfinite(arr).all(axis=1)
-        if bad.any():
-            row = int(np.flatnonzero(bad)[0])
-            raise ToolPathError(f"{name} is not finite ({arr[row].tolist()})", source=src,
-                                row=row + 1, field=name)
-    if P.shape[0] < 2:
-        raise ToolPathError(f"a tool path needs at least 2 points, got {P.shape[0]}", source=src)
-    try:
-        O = normalize_orientations(O, source=src)
-    except InputError as exc:
-        raise ToolPathError(str(exc)) from None
+    P, O = checked_points(P, O, source=source, first_row=first_row)
 
     d_tip = np.linalg.norm(np.diff(P, axis=0), axis=1)
     d_ang = angle_between(O[:-1], O[1:])
@@ -212,7 +238,7 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
         i = int(np.flatnonzero(big)[0])
         raise ToolPathError(f"tool orientation turns by {d_ang[i]:.6g} rad from the previous "
                             f"point (at most {MAX_ORIENTATION_STEP:.6g}); insert points",
-                            source=src, row=int(index[i + 1]) + 1, field="O")
+                            source=src, row=first_row + int(index[i + 1]) + 1, field="O")
     if dropped:
         chord = np.hypot(np.linalg.norm(np.diff(P, axis=0), axis=1), l_eq * d_ang)
 
@@ -232,6 +258,32 @@ def fit_path(P, O, *, l_eq: float = L_EQ, source: str = "") -> PathSpline:
 def fit_toolpath(toolpath, *, l_eq: float = L_EQ) -> PathSpline:
     """:func:`fit_path` of a :class:`precontour.toolpath.ToolPath`."""
     return fit_path(toolpath.P, toolpath.O, l_eq=l_eq, source=toolpath.source)
+
+
+def corner_points(P: np.ndarray, O: np.ndarray, *, l_eq: float = L_EQ,
+                  angle: float = CORNER_ANGLE) -> np.ndarray:
+    """Rows (0-based, interior points only) where the tool path turns by ``angle`` degrees or
+    more (:data:`CORNER_ANGLE`) between the move that ends there and the move that starts
+    there. A move is the chord of tip and orientation in the combined length's units
+    (``P`` difference, ``l_eq`` times the unit orientations' difference); duplicate points
+    (a chord below :data:`DUPLICATE_TOLERANCE`) are skipped, a corner among them is at the
+    first of them. ``P``, ``O``: shape (M, 3); ``O`` need not be unit length yet."""
+    P = np.asarray(P, dtype=float)
+    O = np.asarray(O, dtype=float)
+    if P.shape[0] < 3:
+        return np.zeros(0, dtype=int)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = O / np.linalg.norm(O, axis=1, keepdims=True)
+    chord = np.concatenate([np.diff(P, axis=0), l_eq * np.diff(unit, axis=0)], axis=1)
+    length = np.linalg.norm(chord, axis=1)
+    moves = np.flatnonzero(length >= DUPLICATE_TOLERANCE)   # move k: point k -> point k + 1
+    if moves.size < 2:
+        return np.zeros(0, dtype=int)
+    direction = chord[moves] / length[moves, None]
+    cosine = np.einsum("ij,ij->i", direction[1:], direction[:-1])
+    turn = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    # the corner is the point the first of the two moves ends at
+    return moves[:-1][turn >= angle] + 1
 
 
 def _interpolate(s: np.ndarray, P: np.ndarray, O: np.ndarray) -> tuple[BSpline, BSpline]:
