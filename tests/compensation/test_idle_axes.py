@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precontour.compensation.idle_axes import (STILL_TAPER, hold_idle_axes, hold_resting_axes,
-                                              idle_axes, idle_stretches, resting_axes)
+from precontour.compensation.idle_axes import (hold_idle_axes, hold_resting_axes, idle_axes,
+                                              resting_axes)
 from precontour.compensation.precompensate import compensate
 from precontour.prediction.contour import ReferencePath, contour_errors
 from precontour.simulation.virtual_machine import REALISTIC, simulate
@@ -47,47 +47,6 @@ def test_hand_made_commands():
     assert hold_resting_axes(reference, within, TOL) is within
     # C's round-off of 1e-12 is beyond a tolerance of 1e-13
     assert resting_axes(reference, 1e-13).tolist() == [True, False, True, True, False]
-
-
-def test_an_axis_resting_for_a_stretch_is_held_there_where_its_correction_is_round_off():
-    """Y rests, moves, rests again and moves back (1 ms samples). Its correction is 30 nm on
-    the first rest (within the 0.1 um tolerance: held, the reference exactly), 1 um on the
-    moves (kept beyond the taper), and on the second rest it grows from 0 to 0.2 um (a lead
-    before the move back: a model result, so that stretch is not held at all). The taper is
-    C2 and within STILL_TAPER of the stretch; without the sample period only whole axes are
-    held, as before; a held command is held again as it is."""
-    ts = 1e-3
-    n = 400
-    k = np.arange(n)
-    reference = np.zeros((n, 5))
-    reference[:, 0] = 1e-3 * k                             # X moves throughout
-    y = np.zeros(n)
-    y[100:200] = 1e-3 * (k[100:200] - 100)                 # Y: rests, moves, rests, moves
-    y[200:300] = y[199]
-    y[300:] = y[199] - 1e-3 * (k[300:] - 299)
-    reference[:, 1] = y
-    q = reference.copy()
-    q[:, 0] += 1e-6
-    q[:100, 1] += 3e-5
-    q[100:200, 1] += 1e-6
-    q[200:300, 1] += np.linspace(0.0, 2e-4, 100)
-    q[300:, 1] += 1e-6
-    tol = TOL
-    stretches = idle_stretches(reference, q, tol, ts)
-    assert not stretches[:, 0].any()
-    assert stretches[:100, 1].all() and not stretches[100:, 1].any()
-    held = hold_idle_axes(reference, q, tol, ts)
-    taper = int(round(STILL_TAPER / ts))
-    np.testing.assert_array_equal(held[:100 - taper, 1], reference[:100 - taper, 1])
-    np.testing.assert_array_equal(held[100:, 1], q[100:, 1])     # the moves left as they are
-    np.testing.assert_array_equal(held[:, [0, 2, 3, 4]], q[:, [0, 2, 3, 4]])
-    # at the stretch's end the correction rises from 0 to its 30 nm monotonically inside the
-    # stretch (a cubic B-spline kernel: C2), with no step of its whole size
-    rise = held[100 - taper:100, 1] - reference[100 - taper:100, 1]
-    assert np.all(np.diff(rise) >= 0) and rise[0] == 0 and rise[-1] <= 3e-5
-    assert np.abs(np.diff(np.concatenate([rise, [3e-5]]))).max() < 1.5e-5
-    assert hold_idle_axes(reference, reference, tol, ts) is reference   # nothing to hold
-    assert hold_idle_axes(reference, q, tol) is q          # whole axes only
 
 
 @pytest.fixture(scope="module")

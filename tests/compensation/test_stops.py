@@ -568,35 +568,3 @@ def test_the_line_search_on_the_plain_track_does_not_run_the_plain_iterate_again
                                                   "ori_max_mrad": 0.0, "ori_mean_mrad": 0.0}
     assert report.chosen == "pass 3" and q[0, 0] == pytest.approx(0.5e-3)
     assert len({q_run.tobytes() for q_run in runs}) == len(runs)    # no command run twice
-
-
-def test_every_update_is_held_after_its_smoothing():
-    """``hold``: what must stay at the reference (here Y) is set back after each update's
-    smoothing, which would otherwise spread the update into it: every command learning runs
-    after the linear one holds Y exactly, the settled tails and the line search's steps
-    included; without ``hold`` the smoothed update moves Y."""
-    q_ref, q_linear = _toy_commands(1e-3)
-    tried = []
-
-    def machine(q):
-        tried.append(q)
-        return np.stack([q, q])
-
-    def step(q_cmd, q_act, actual):
-        moved = q_cmd.copy()
-        moved[:, 1] += 1e-6 * np.sin(np.arange(q_cmd.shape[0]))   # the update moves Y
-        return moved
-
-    def hold_y(q):
-        held = q.copy()
-        held[:, 1] = q_ref[:, 1]
-        return held
-
-    options = dict(passes=2, settle_delays=(0.0, 0.01), smoothing=0.003,
-                   worst_draw_steps=())
-    learn_at_stops(q_ref, q_linear, 1e-3, machine, _toy_errors, step, hold=hold_y, **options)
-    assert len(tried) > 6
-    assert all(np.array_equal(q[:, 1], q_ref[:, 1]) for q in tried)
-    tried.clear()
-    learn_at_stops(q_ref, q_linear, 1e-3, machine, _toy_errors, step, **options)
-    assert not all(np.array_equal(q[:, 1], q_ref[:, 1]) for q in tried)

@@ -16,13 +16,6 @@ TAPER_HOLD = 0.05
 TAPER_WIDTH = 0.1
 
 
-def taper_reach(ts: float, hold: float = TAPER_HOLD, width: float = TAPER_WIDTH) -> int:
-    """Samples beyond the samples ``over`` within which :func:`taper_weight`'s weight is
-    nonzero (the hold, the widening and the kernel's half-support)."""
-    box = max(1, int(round(width / ts / 4)))
-    return int(round(hold / ts)) + 4 * box
-
-
 def taper_weight(over: np.ndarray, ts: float, hold: float = TAPER_HOLD,
                  width: float = TAPER_WIDTH) -> tuple[np.ndarray, np.ndarray]:
     """Weight 1 within ``hold`` (s) of the samples ``over``, falling to 0 over ``width`` (s) on

@@ -212,12 +212,8 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     _, q_best, after_best, passes = best
     idle_tolerance = compensation_axis_tolerances(tol_linear, tol_rotary)
 
-    # stretch by stretch for the contour method only: the tracking baseline is the paper's
-    # q + e(q) as it stands (spec section 7), whole resting axes apart
-    stretches_ts = traj.ts if method == "contour" else None
-
     def hold(q):
-        return hold_idle_axes(traj.q, q, idle_tolerance, stretches_ts) if hold_idle else q
+        return hold_idle_axes(traj.q, q, idle_tolerance) if hold_idle else q
 
     q_held = hold(q_best)
     if q_held is not q_best:

@@ -217,8 +217,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    local: bool = True, t0: float = 0.0,
                    tail_errors_of=None, repeat_actual: MachineActual | None = None,
                    variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
-                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS,
-                   hold: Callable[[np.ndarray], np.ndarray] | None = None
+                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS
                    ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
@@ -303,13 +302,6 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         it is neither made to fall back locally (mending it would spend a fallback's
         judgements on a command that only refines one the fallback already tries) nor
         another's fallback in a block.
-
-    hold : callable, optional
-        ``hold(q)``: the command with what must stay at the reference set back to it (the
-        axes and stretches where the reference rests and the correction is within the fits'
-        tolerance, :func:`~.idle_axes.hold_idle_axes`), applied to every update after its
-        smoothing, which would spread the update into them, and before the variant's
-        projection.
 
     Returns
     -------
@@ -456,8 +448,6 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                     q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
                 else:
                     q_new = towards(q_cmd, contour_step(q_cmd, model(q_cmd), model))
-                if hold is not None:
-                    q_new = hold(q_new)
                 if project is not None:
                     q_new = project(q_new)
         except PrecontourError:

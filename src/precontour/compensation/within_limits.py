@@ -331,7 +331,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     idle_tolerance = compensation_axis_tolerances()
 
     def hold(q):
-        return hold_idle_axes(reference.q, q, idle_tolerance, ts)
+        return hold_idle_axes(reference.q, q, idle_tolerance)
 
     def run_as(q):
         """The command in fact run for ``q``: the uncompensated one as it is, others
@@ -357,7 +357,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
                           settle_delays=settle_delays,
                           repeat_actual=getattr(machine_actual, "repeat", None),
-                          variants=(("resting axes held", hold_resting),), hold=hold)
+                          variants=(("resting axes held", hold_resting),))
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):

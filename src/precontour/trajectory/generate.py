@@ -1,9 +1,9 @@
 """Trajectory generation: a programmed :class:`~precontour.toolpath.ToolPath` in, a
 time-stamped five-axis :class:`~precontour.trajectory.sampled.Trajectory` out.
 
-Glue of two stages: :func:`precontour.trajectory.pathspline.fit_toolpath` (C3 geometric splines) and
-:func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis limits),
-once per stretch between the tool path's corners (:func:`~.pathspline.corner_points`: the tool
+Glue of two stages: :func:`precontour.trajectory.pathspline.fit_path` (C3 geometric splines)
+and :func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis
+limits), once per stretch between the tool path's corners (:func:`~.pathspline.corner_points`: the tool
 stops at each, as at an exact stop); plus :func:`summarize`, the numbers the command line
 prints about a trajectory.
 """
