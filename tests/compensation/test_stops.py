@@ -455,15 +455,11 @@ def test_a_block_within_the_uncompensated_repeatability_is_not_worse():
     assert report.fallback.blocks[0].start == pytest.approx(0.3)
 
 
-def test_a_variant_is_learned_again_and_competes_for_being_kept():
-    """A toy machine on which a command that moves the resting axis Y at all slips 4 um in X on
-    its second draw (a resting axis under static friction, pushed by the feed-forward): the
-    linear command (1 um, Y corrected by 1 nm) leaves 5 um on that draw. Its variant with Y
-    held, learned again from the held linear command, leaves 1 um on both draws and is kept,
-    labelled with the variant's name; every iterate of the variant holds Y. A variant that
-    changes nothing learns nothing again."""
-    q_ref, q_linear = _toy_commands(1e-3)
-    q_linear[:, 1] = 1e-6
+def _slipping_y(q_ref):
+    """A toy machine of two draws on which a command that moves the resting axis Y at all
+    slips 4 um in X on the second (a resting axis under static friction, pushed by the
+    feed-forward), the commands it ran (``tried``), an update that moves Y by 1 nm, and the
+    projection holding Y at ``q_ref`` (the same array where it already does)."""
     tried = []
 
     def two_draws(q):
@@ -474,7 +470,7 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
         return np.stack([q, second])
 
     def step(q_cmd, q_act, actual):
-        return q_cmd + np.array([0, 1e-6, 0, 0, 0])    # the update moves Y again
+        return q_cmd + np.array([0, 1e-6, 0, 0, 0])    # the update moves Y
 
     def hold_y(q):
         if np.array_equal(q[:, 1], q_ref[:, 1]):
@@ -483,6 +479,19 @@ def test_a_variant_is_learned_again_and_competes_for_being_kept():
         held[:, 1] = q_ref[:, 1]
         return held
 
+    return tried, two_draws, step, hold_y
+
+
+def test_a_variant_is_learned_again_and_competes_for_being_kept():
+    """A toy machine on which a command that moves the resting axis Y at all slips 4 um in X on
+    its second draw (a resting axis under static friction, pushed by the feed-forward): the
+    linear command (1 um, Y corrected by 1 nm) leaves 5 um on that draw. Its variant with Y
+    held, learned again from the held linear command, leaves 1 um on both draws and is kept,
+    labelled with the variant's name; every iterate of the variant holds Y. A variant that
+    changes nothing learns nothing again."""
+    q_ref, q_linear = _toy_commands(1e-3)
+    q_linear[:, 1] = 1e-6
+    tried, two_draws, step, hold_y = _slipping_y(q_ref)
     options = dict(passes=1, settle_delays=(), line_search_steps=(), worst_draw_steps=())
     q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
                                variants=(("Y held", hold_y),), **options)
@@ -509,25 +518,7 @@ def test_a_variant_that_holds_what_only_the_updates_move_is_learned_from_the_lin
     and the Y-moving passes were the only ones learned (on `circle` / `pid-high`, X slipped
     44 um on one draw)."""
     q_ref, q_linear = _toy_commands(1e-3)
-    tried = []
-
-    def two_draws(q):
-        tried.append(q)
-        second = q.copy()
-        if np.any(q[:, 1] != q_ref[:, 1]):
-            second[:, 0] += 4e-3
-        return np.stack([q, second])
-
-    def step(q_cmd, q_act, actual):
-        return q_cmd + np.array([0, 1e-6, 0, 0, 0])    # the update moves Y
-
-    def hold_y(q):
-        if np.array_equal(q[:, 1], q_ref[:, 1]):
-            return q
-        held = q.copy()
-        held[:, 1] = q_ref[:, 1]
-        return held
-
+    tried, two_draws, step, hold_y = _slipping_y(q_ref)
     q, report = learn_at_stops(q_ref, q_linear, 1e-3, two_draws, _toy_errors, step,
                                variants=(("Y held", hold_y),), passes=2, settle_delays=(),
                                line_search_steps=(), worst_draw_steps=())
