@@ -170,3 +170,13 @@ def test_a_corner_at_a_singular_direction_is_refused_naming_its_row(machine):
     O = np.column_stack([np.sin(tilt), np.zeros(5), np.cos(tilt)])
     with pytest.raises(ToolPathError, match=r"row 2.*singular direction"):
         generate_trajectory(ToolPath(P=P, O=O, source="plunge"), machine)
+
+
+def test_an_error_in_a_stretch_after_a_corner_names_the_row_of_the_file():
+    """A tool path with a corner at row 3 whose second stretch turns the tool by more than a
+    right angle between rows 5 and 6: the error names row 6 of the file, not of the stretch."""
+    P = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [2, 2, 0], [2, 2.1, 0]])
+    O = np.tile([0.0, 0.0, 1.0], (6, 1))
+    O[5] = [0.0, -0.6, -0.8]                       # turns by 143 degrees from row 5
+    with pytest.raises(ToolPathError, match=r"row 6.*turns by"):
+        generate_trajectory(ToolPath(P=P, O=O, source="turn"), load_machine("zhang2013"))

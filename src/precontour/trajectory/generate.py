@@ -3,9 +3,9 @@ time-stamped five-axis :class:`~precontour.trajectory.sampled.Trajectory` out.
 
 Glue of two stages: :func:`precontour.trajectory.pathspline.fit_path` (C3 geometric splines)
 and :func:`precontour.trajectory.feedplan.plan_feed` (jerk-limited time law within feed and axis
-limits), once per stretch between the tool path's corners (:func:`~.pathspline.corner_points`: the tool
-stops at each, as at an exact stop); plus :func:`summarize`, the numbers the command line
-prints about a trajectory.
+limits), once per stretch between the tool path's corners
+(:func:`~.pathspline.corner_points`: the tool stops at each, as at an exact stop); plus
+:func:`summarize`, the numbers the command line prints about a trajectory.
 """
 
 from __future__ import annotations
@@ -125,17 +125,17 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
     n_hold = int(round(dwell / ts))
     pieces = []     # per stretch: q, P, O and line, the first sample dropped after the first
     budget = max(1, limit - n_hold)
-    c_near = None
     stopped = None  # the axes where the previous stretch stopped
     for path, first, last in zip(paths, bounds[:-1], bounds[1:]):
         feeds = None if toolpath.feed is None else toolpath.feed[first:last + 1]
+        # a stretch continues on the branch the previous one stopped on (slot 4: C, or B)
         profile = plan_feed(path, machine, feed=feed, acceleration=acceleration, jerk=jerk,
                             ts=ts, programmed_feed=feeds, max_samples=max(1, budget),
-                            c_near=c_near)
+                            c_near=None if stopped is None else float(stopped[4]))
+        skip = 0 if stopped is None else 1   # a stretch starts where the previous stopped
         if stopped is not None:
             _check_join(stopped, profile.q[0], machine, toolpath.source, first)
         stopped = profile.q[-1]
-        skip = 1 if pieces else 0     # a stretch starts where the previous stopped
         part = [profile.q[skip:], profile.P[skip:], profile.O[skip:], None]
         if lines is not None:
             # the kept point each sample moves to: the first s_points[k] >= s (round-off at
@@ -145,7 +145,6 @@ def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: fl
             part[3] = lines[first + path.point_index[k]]
         pieces.append(part)
         budget -= profile.s.size - skip
-        c_near = float(stopped[4])
     q, P, O = (np.concatenate([part[i] for part in pieces]) for i in range(3))
     line = None if lines is None else np.concatenate([part[3] for part in pieces])
     t = np.arange(q.shape[0]) * ts
