@@ -376,6 +376,13 @@ class RunResult:
                          "pre-compensation): " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
                                                           for a, b in kinks[:5])
                          + (" ..." if len(kinks) > 5 else ""))
+        smoothed = self.limited.smoothed
+        if smoothed:
+            lines.append(f"corrections smoothed instead of slowed down in {len(smoothed)} "
+                         "window(s) (they broke a limit; blended into tracking-error "
+                         "pre-compensation, predicted no worse there): "
+                         + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in smoothed[:5])
+                         + (" ..." if len(smoothed) > 5 else ""))
         lines.append(f"blocks written {self.program.n_blocks} (tolerance "
                      f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
                      f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")

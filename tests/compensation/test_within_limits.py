@@ -171,6 +171,80 @@ def test_taper_leaves_the_correction_out_where_it_breaks_a_limit_and_is_smooth()
     assert jerk < 200.0
 
 
+
+def _spiral(n_points: int, r0: float = 10.0, r1: float = 15.0):
+    """A smooth five-axis CL path in the manner of ``benchmarks/bench_trajectory.py``'s: the
+    tool tip spirals over a dome (radius ``r0`` -> ``r1`` mm, 0.1 mm between points) while
+    the tool tilts (A 0.3-0.9 rad) and turns with the spiral, C reversing thrice a turn."""
+    from precontour.toolpath import ToolPath
+
+    u = np.linspace(0.0, 1.0, n_points)
+    turns = 0.1 * n_points / (2 * np.pi * 0.5 * (r0 + r1))
+    theta = 2 * np.pi * turns * u
+    r = r0 + (r1 - r0) * u
+    P = np.stack([r * np.cos(theta), r * np.sin(theta), 30.0 * np.cos(r / 40.0)], axis=-1)
+    A = 0.6 + 0.3 * np.sin(7 * theta / turns)
+    C = theta + 0.4 * np.sin(3 * theta)
+    O = np.stack([np.sin(A) * np.sin(C), -np.sin(A) * np.cos(C), np.cos(A)], axis=-1)
+    return ToolPath(P=P, O=O, source="spiral")
+
+
+def test_rough_corrections_are_smoothed_instead_of_slowed(machine, monkeypatch):
+    """Where C reverses on a smooth five-axis path whose reference uses little of the limits,
+    the tool axis's contour correction turns within tens of milliseconds and breaks the jerk
+    limit. Blended into tracking-error pre-compensation there, the commands keep the limits
+    with less slowing (measured: 0.079 s added instead of 0.276 s), and on the linear
+    virtual machine (``simulate`` in continuous mode without friction: not the prediction
+    that decided) their contour errors in each smoothed window stay within the block margins
+    of those of the compensated commands, which break the limit there."""
+    from precontour.compensation.blocks import ORIENTATION_MARGIN, TIP_MARGIN, margin_bound
+
+    traj = generate_trajectory(_spiral(6000), machine)
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    limited = compensate_within_limits(traj, machine.kinematics, models, limits)
+    assert not limited.first_check.ok and limited.check.ok and limited.smoothed
+    q = limited.result.trajectory.q
+    for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
+                                                limits.jerk)):
+        assert np.all(peak <= limit * (1 + 1e-9))
+    # the compensated commands on the same (final) timing, limits not kept
+    reference = limited.reference
+    free = compensate(reference, machine.kinematics, models).trajectory.q
+    path = ReferencePath.from_trajectory(reference)
+    errors = {label: contour_errors(path, simulate(reference.t, command, machine, "pid-high",
+                                                   mode="continuous", friction=False,
+                                                   ff_friction=False).q_act,
+                                    machine.kinematics)
+              for label, command in (("smoothed", q), ("free", free))}
+    assert not np.allclose(q, free)
+    # the smoothed windows, in the time of the original reference, on the final one
+    original_t = traj.t[0] + limited.planned_index * traj.ts
+    for start, stop in limited.smoothed:
+        inside = (original_t >= start) & (original_t <= stop)
+        assert inside.any()
+        smoothed, compensated = errors["smoothed"], errors["free"]
+        assert smoothed.tip[inside].max() <= margin_bound(compensated.tip[inside].max(),
+                                                          TIP_MARGIN)
+        assert smoothed.orientation[inside].max() <= margin_bound(
+            compensated.orientation[inside].max(), ORIENTATION_MARGIN)
+    # without it, slowing down alone
+    monkeypatch.setattr(within_limits, "smooth_instead_of_slowing",
+                        lambda reference, q, *args: (q, []))
+    slowed = compensate_within_limits(traj, machine.kinematics, models, limits)
+    assert not slowed.smoothed and slowed.check.ok
+    assert limited.added_time < 0.5 * slowed.added_time
+
+
+def test_a_blend_that_would_leave_the_path_is_slowed_instead(machine, circle):
+    """On ``circle`` with pid-high the jerk limit breaks near the end, where the blend into
+    tracking-error pre-compensation would leave 2.96 um against the compensated commands'
+    0.11 um (predicted): that window is slowed down, not smoothed."""
+    models = machine.controller("pid-high").error_models(machine.drives)
+    limits = AxisLimits.from_machine(machine)
+    result = compensate_within_limits(circle, machine.kinematics, models, limits)
+    assert not result.first_check.ok and not result.smoothed and result.slowdowns
+
 #: A TCP program whose first feed move starts where a rapid ends, at an angle, and whose
 #: last ends before a rapid: at both stops the predicted actual tool tip's closest reference
 #: point switches from one leg of the corner to the other.

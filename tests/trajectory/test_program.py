@@ -4,8 +4,6 @@ every sample within the machine's limits, and the 'line' column."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
