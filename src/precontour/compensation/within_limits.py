@@ -32,12 +32,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.ndimage import minimum_filter1d
 
 from ..defaults import DEFAULT_MIN_SPEED
 from ..errors import MachineLimitError
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
-from ..trajectory.retime import Slowdown, retime, slowdowns_of
+from ..trajectory.retime import RAMP_TIME, SPREAD_TIME, Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .blend import taper_corrections, taper_weight
@@ -188,8 +189,11 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                     check = check_limits(q, ts, limits, t0=t0)
         over = check.ratio > 1.0 + CHECK_RTOL
         # the largest further stretch each sample may take and keep the floor: its speed now
-        # (original samples per sample) over the floor
-        room = _FLOOR_MARGIN * _speed(to_original) / min_speed
+        # (original samples per sample) over the floor, the least of it over the samples its
+        # stretch reaches (the re-timing holds a stretch and fades it in and out around the
+        # sample, so where an earlier round slowed a neighbour, that neighbour's room counts)
+        room = minimum_filter1d(_FLOOR_MARGIN * _speed(to_original) / min_speed,
+                                2 * _retime_reach(ts) + 1, mode="nearest")
         stuck = over & (room <= 1.0 + CHECK_RTOL)
         if check.position_ok and (floored.any() or stuck.any()):
             floored |= stuck
@@ -254,6 +258,13 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         planned_index=to_original, rounds=max_rounds, first_check=first_check, check=final,
         uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows),
         kinks=_merged(kinks), min_speed=min_speed, smoothed=tuple(smoothed))
+
+
+def _retime_reach(ts: float) -> int:
+    """Samples either side of a sample within which :func:`~..trajectory.retime.retime`
+    spreads its stretch (the hold, then the bell's ramp), plus one."""
+    half = max(1, int(round(RAMP_TIME / ts)))
+    return 2 * half + int(round(SPREAD_TIME / ts)) + 1
 
 
 def _speed(to_original: np.ndarray) -> np.ndarray:
