@@ -4,8 +4,8 @@ Two sections, each rewritten by its own run (``--sections``), each stamped:
 
 ``linuxcnc``
     LinuxCNC's public trunnion-table example programs (``impeller-7bl-xyzac.ngc``,
-    ``boat-xyzac.ngc`` and ``boat-xyzbc.ngc``, the last without its two closing moves in
-    machine coordinates, G53, which ``run`` refuses; searched where LinuxCNC installs its
+    ``boat-xyzac.ngc`` and ``boat-xyzbc.ngc``, the last as issue 21 measures it, without its
+    two closing moves in machine coordinates (G53); searched where LinuxCNC installs its
     examples, or ``--demos DIR``) run as ``precontour run PROGRAM --tcp --machine
     linuxcnc-xyzac-trt`` (``linuxcnc-xyzbc-trt`` for the B-C boat) ``--controller
     pid-high``: planned and compensated duration, slowed windows, kinks smoothed, the

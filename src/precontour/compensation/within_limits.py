@@ -30,6 +30,8 @@ blend nothing, with the predicted contour errors no larger.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cache, partial
+from typing import Callable
 
 import numpy as np
 from scipy.ndimage import minimum_filter1d
@@ -38,7 +40,7 @@ from ..defaults import DEFAULT_MIN_SPEED
 from ..errors import MachineLimitError
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
-from ..trajectory.retime import RAMP_TIME, SPREAD_TIME, Slowdown, retime, slowdowns_of
+from ..trajectory.retime import Slowdown, retime, slowdowns_of, stretch_reach
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .blend import taper_corrections, taper_weight
@@ -172,7 +174,9 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         check = check_limits(q, ts, limits, t0=t0)
         first_check = first_check or check
         if not check.ok and method == "contour":
-            q, windows = smooth_kinks(current, q, check, models, options)
+            # what kinks and rough corrections blend into: predicted at most once a round
+            tracking = cache(partial(_tracking, current, models, options))
+            q, windows = smooth_kinks(current, q, check, tracking)
             if windows:
                 kinks += [(t0 + to_original[a] * ts, t0 + to_original[b] * ts)
                           for a, b in windows]
@@ -183,7 +187,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                 predicted = result.after if q is result.trajectory.q else _predicted(
                     current.with_axes(q), models, options, kinematics).contour
                 q, windows = smooth_instead_of_slowing(current, q, check, predicted,
-                                                       kinematics, models, options)
+                                                       tracking, kinematics, models, options)
                 if windows:
                     smoothed += [(t0 + a * ts, t0 + b * ts) for a, b in windows]
                     check = check_limits(q, ts, limits, t0=t0)
@@ -193,7 +197,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         # stretch reaches (the re-timing holds a stretch and fades it in and out around the
         # sample, so where an earlier round slowed a neighbour, that neighbour's room counts)
         room = minimum_filter1d(_FLOOR_MARGIN * _speed(to_original) / min_speed,
-                                2 * _retime_reach(ts) + 1, mode="nearest")
+                                2 * stretch_reach(ts) + 1, mode="nearest")
         stuck = over & (room <= 1.0 + CHECK_RTOL)
         if check.position_ok and (floored.any() or stuck.any()):
             floored |= stuck
@@ -260,13 +264,6 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         kinks=_merged(kinks), min_speed=min_speed, smoothed=tuple(smoothed))
 
 
-def _retime_reach(ts: float) -> int:
-    """Samples either side of a sample within which :func:`~..trajectory.retime.retime`
-    spreads its stretch (the hold, then the bell's ramp), plus one."""
-    half = max(1, int(round(RAMP_TIME / ts)))
-    return 2 * half + int(round(SPREAD_TIME / ts)) + 1
-
-
 def _speed(to_original: np.ndarray) -> np.ndarray:
     """Speed at each sample as a fraction of the planned one: original samples per sample
     of the time map (the slower of the two intervals at each sample)."""
@@ -288,24 +285,31 @@ def _merged(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ..
     return tuple((float(a), float(b)) for a, b in out)
 
 
-def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck, models, options
+def _tracking(reference: Trajectory, models, options) -> np.ndarray:
+    """Axis tracking-error pre-compensation of ``reference``: each command plus its own
+    predicted tracking error (spec section 7's baseline)."""
+    return reference.q + _predicted(reference, models, options).e
+
+
+def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck,
+                 tracking: Callable[[], np.ndarray]
                  ) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """Commands ``q`` (compensated on ``reference``) blended into axis tracking-error
-    pre-compensation around the samples whose limit check asks for more than
-    :data:`KINK_STRETCH` (with the weights of :func:`taper_corrections`); returns them and the
-    blended windows as sample index pairs (none: ``q`` itself)."""
+    pre-compensation (``tracking()``, :func:`_tracking`) around the samples whose limit check
+    asks for more than :data:`KINK_STRETCH` (with the weights of :func:`taper_corrections`);
+    returns them and the blended windows as sample index pairs (none: ``q`` itself)."""
     kinks = check.stretch > KINK_STRETCH
     if not kinks.any():
         return q, []
-    tracking = reference.q + _predicted(reference, models, options).e
-    return taper_corrections(tracking, q, kinks, reference.ts)
+    return taper_corrections(tracking(), q, kinks, reference.ts)
 
 
 def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: LimitCheck,
-                              predicted, kinematics, models, options
-                              ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+                              predicted, tracking: Callable[[], np.ndarray], kinematics,
+                              models, options) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """Commands ``q`` (compensated on ``reference``, predicted contour errors ``predicted``)
-    blended into axis tracking-error pre-compensation around the samples over a limit in
+    blended into axis tracking-error pre-compensation (``tracking()``, :func:`_tracking`)
+    around the samples over a limit in
     ``check``, in each window of the blend (:func:`~.blend.taper_weight`) whose predicted
     contour errors, tip and orientation, stay within the block margins
     (:func:`~.blocks.margin_bound`: 0.1 um / 1 urad or 5 %) of ``predicted`` there; returns
@@ -321,8 +325,7 @@ def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: Limit
     if not over.any():
         return q, []
     ts = reference.ts
-    tracking = reference.q + _predicted(reference, models, options).e
-    blended, _ = taper_corrections(tracking, q, over, ts)
+    blended, _ = taper_corrections(tracking(), q, over, ts)
     after = _predicted(reference.with_axes(blended), models, options, kinematics).contour
     # the windows where the blend changes the commands
     weight, _ = taper_weight(over, ts)
@@ -336,7 +339,7 @@ def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: Limit
             keep[near] = True
     if not keep.any():
         return q, []
-    return taper_corrections(tracking, q, over & keep, ts)
+    return taper_corrections(tracking(), q, over & keep, ts)
 
 
 def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,

@@ -150,6 +150,20 @@ def _windows(added: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
+def _spread_samples(ts: float, ramp: float, spread: float) -> tuple[int, int]:
+    """The bell's half-width and the reach either side over which :func:`added_stretch` holds
+    a sample's need, in samples."""
+    half = max(1, int(round(ramp / ts)))
+    return half, half + max(0, int(round(spread / ts)))
+
+
+def stretch_reach(ts: float, *, ramp: float = RAMP_TIME, spread: float = SPREAD_TIME) -> int:
+    """Samples either side of a sample within which :func:`added_stretch` may stretch the
+    motion for that sample's need (held over its reach, then smoothed by the bell), plus one."""
+    half, reach = _spread_samples(ts, ramp, spread)
+    return reach + half + 1
+
+
 def added_stretch(stretch: np.ndarray, ts: float, *, ramp: float = RAMP_TIME,
                   spread: float = SPREAD_TIME) -> np.ndarray:
     """Stretch added to each sampling interval (N-1,): rho - 1 >= the need at each sample's
@@ -159,8 +173,7 @@ def added_stretch(stretch: np.ndarray, ts: float, *, ramp: float = RAMP_TIME,
     level = np.maximum(need[1:], need[:-1])
     if not level.any():
         return np.zeros_like(level)
-    half = max(1, int(round(ramp / ts)))
-    reach = half + max(0, int(round(spread / ts)))
+    half, reach = _spread_samples(ts, ramp, spread)
     held = maximum_filter1d(level, 2 * reach + 1, mode="constant", cval=0.0)
     x = np.linspace(-1.0, 1.0, 2 * half + 3)[1:-1]
     bell = (1.0 - x * x) ** 3          # value, slope and curvature vanish at both ends: C2
