@@ -554,14 +554,14 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                                        corner_tolerance=corner_tolerance,
                                        max_samples=max_samples, feed_scale=feed_scale_max)[0]
             line = getattr(planned, "line", None)
-        refine = None
-        if learn and can_learn(planned, machine_obj):
-            def refine(limited):
-                # a timing slowed beyond the learning's size is compensated without it
-                if not can_learn(limited.reference, machine_obj):
-                    return limited
-                return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
-                                         learn, ensemble=learning_ensemble)
+        def learned(limited):
+            # a timing slowed beyond the learning's size is compensated without it
+            if not can_learn(limited.reference, machine_obj):
+                return limited
+            return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
+                                     learn, ensemble=learning_ensemble)
+
+        refine = learned if learn and can_learn(planned, machine_obj) else None
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
             refine=refine, exempt_lines=_rapid_lines(source),

@@ -44,8 +44,8 @@ def _head_with_dwells(source, motion_lines: int, out, speedup: float):
     """The first ``motion_lines`` lines with axis words of ``source``, each followed by a
     dwell, then M2; feeds ``speedup`` times the programmed ones (the geometry is what
     counts here, and LinuxCNC keeps within its limits whatever the feed). Stops before a
-    move in machine coordinates (G53: the boat's last two lines), which precontour's reader
-    refuses."""
+    move in machine coordinates (G53: the boat's last two lines): what is compared here is
+    the kinematics of the program's moves in work coordinates."""
     kept, count = [], 0
     for line in source.read_text().splitlines():
         code = re.sub(r"\([^)]*\)", "", line).split(";")[0].upper()
