@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precontour.trajectory.retime import added_stretch, retime
+from precontour.trajectory.retime import added_stretch, held_through_stops, retime
 from precontour.trajectory.sampled import Trajectory
 
 TS = 1e-3
@@ -111,3 +111,44 @@ def test_added_stretch_covers_the_need_smoothly():
     for a, b in zip(edges[::2], edges[1::2]):
         assert added[a:b].sum() == pytest.approx(round(added[a:b].sum()), abs=1e-9)
     assert np.abs(np.diff(added, 2)).max() < 1e-3
+
+
+def _move_rest_move(ts=0.001):
+    """X: a move (speed rising smoothly over 0.1 s, held 0.2 s, falling over 0.1 s), a rest of
+    0.2 s, the same move again, a rest; the other axes rest throughout. Returns q (N, 5)."""
+    ramp = lambda s: 3 * s**2 - 2 * s**3                        # noqa: E731
+    up = ramp(np.linspace(0.0, 1.0, 101))[1:]
+    speed = np.concatenate([up, np.ones(200), up[::-1], np.zeros(200)])
+    x = np.concatenate([[0.0], np.cumsum(np.tile(speed, 2)) * ts])
+    q = np.zeros((x.size, 5))
+    q[:, 0] = x
+    return q
+
+
+def test_held_through_stops_spreads_a_need_in_a_rest_over_its_approach_and_start():
+    """A need within a rest (the corrections settling after a stop) is held over the whole
+    deceleration into it and the whole acceleration out of it, known here from how
+    :func:`_move_rest_move` is built (sample k's step is speed k - 1: the first deceleration
+    is samples 301-400, the rest 401-600, the next acceleration 601-700); the first
+    acceleration and the cruises are left as they are."""
+    q = _move_rest_move()
+    assert np.all(np.diff(q[400:601, 0]) == 0.0) and np.diff(q[:, 0])[399] > 0.0
+    stretch = np.ones(q.shape[0])
+    stretch[450] = 1.3
+    held = held_through_stops(stretch, q)
+    assert np.all(held[301:401] == 1.3)
+    assert np.all(held[601:700] == 1.3)
+    assert held[450] == 1.3
+    assert np.all(held[:299] == 1.0)
+    assert np.all(held[403:450] == 1.0) and np.all(held[451:599] == 1.0)
+    assert np.all(held[702:] == 1.0)
+
+
+def test_held_through_stops_leaves_needs_away_from_rests():
+    """A need in a cruise (the speed neither falling to a rest nor rising from one) is left as
+    it is, and so is a stretch that asks for nothing."""
+    q = _move_rest_move()
+    stretch = np.ones(q.shape[0])
+    np.testing.assert_array_equal(held_through_stops(stretch, q), stretch)
+    stretch[200] = 1.2                       # the first cruise (samples 101-300)
+    np.testing.assert_array_equal(held_through_stops(stretch, q), stretch)

@@ -40,7 +40,8 @@ from ..defaults import DEFAULT_MIN_SPEED
 from ..errors import MachineLimitError
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
-from ..trajectory.retime import Slowdown, retime, slowdowns_of, stretch_reach
+from ..trajectory.retime import (Slowdown, held_through_stops, retime, slowdowns_of,
+                                 stretch_reach)
 from ..trajectory.sampled import Trajectory
 from ..prediction.contour import ReferencePath, contour_errors
 from .blend import taper_corrections, taper_weight
@@ -59,8 +60,27 @@ LATE_ROUND = 4
 #: Each round slows down to this fraction of what the limit check asks for. Compensating the
 #: slowed reference again changes the corrections a little, so aiming just at the limit
 #: (the feed planner's 0.98) needed 4 compensation rounds on a 2-minute test path, 0.9
-#: needed 3; each round is a compensation, the costliest step of ``run``.
-RETIME_MARGIN = 0.9
+#: needed 3; each round is a compensation, the costliest step of ``run``. But on programs
+#: whose reference already runs at the limits, every window is slowed, and the margin is
+#: time: measured (2026-12-03, ``pid-high``, with the 0.1 s ramps of
+#: :data:`LIMITS_RAMP`) LinuxCNC's boats took +4.9 / +5.7 % (A-C / B-C)
+#: with 0.9 and +3.8 / +4.3 % with 0.97 (issue 21: at most 5 %), in 6 rounds each; the eight
+#: built-in and test paths that slow added 89.5 percentage points in sum, against 94.1 with
+#: 0.9 (and 100.3 with the former 0.2 s ramps). ``circle`` / ``pid-high``, slowed at its final
+#: stop, paid for it: 69.7-69.9 % of the max tip error removed on the worst draw with
+#: learning (three nanometre draws of its points) instead of 76.0 % with 0.9.
+RETIME_MARGIN = 0.97
+#: Ramp and hold (s) of the re-timing (:func:`~..trajectory.retime.retime`'s ``ramp`` and
+#: ``spread``). A slowed window costs about (2 ramp + 2 spread) h for a stretch 1 + h, most of
+#: it in the ramps, so they are short here; the limit check after each round sees the terms
+#: they add. Measured (2026-12-03, ``run`` with ``pid-high``): the re-timing's defaults (0.2
+#: and 0.05 s) made LinuxCNC's boat examples +6.8 % (A-C) and +7.4 % (B-C) longer; 0.1 and
+#: 0.02 s alone +4.2 / +4.5 %, but the speed then fell *during* ``circle``'s deceleration to
+#: its final stop (its Y deceleration 888 instead of 664 mm/s^2) and its worst draw's max tip
+#: error removed went from 76-79 % to 0.0-0.1 % on three nanometre draws of its points: hence
+#: :func:`~..trajectory.retime.held_through_stops` (76.0 % with it).
+LIMITS_RAMP = 0.1
+LIMITS_SPREAD = 0.02
 #: Default lowest speed of a slowed window, as a fraction of the planned speed there: where
 #: keeping a limit would need a slower motion, the corrections there taper to the planned
 #: commands instead (which keep the limits) and the motion keeps this speed.
@@ -197,7 +217,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         # stretch reaches (the re-timing holds a stretch and fades it in and out around the
         # sample, so where an earlier round slowed a neighbour, that neighbour's room counts)
         room = minimum_filter1d(_FLOOR_MARGIN * _speed(to_original) / min_speed,
-                                2 * stretch_reach(ts) + 1, mode="nearest")
+                                2 * stretch_reach(ts, ramp=LIMITS_RAMP, spread=LIMITS_SPREAD)
+                                + 1, mode="nearest")
         stuck = over & (room <= 1.0 + CHECK_RTOL)
         if check.position_ok and (floored.any() or stuck.any()):
             floored |= stuck
@@ -232,8 +253,11 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         ratio = np.sqrt(check.ratio) if round_ < LATE_ROUND else check.ratio
         need = check.stretch if round_ == 1 else np.maximum(check.stretch, ratio)
         stretch = np.where(need > 1.0 + CHECK_RTOL, need / RETIME_MARGIN, 1.0)
+        # the speed does not change while the axes decelerate to a rest or leave it
+        stretch = held_through_stops(stretch, current.q, levels=limits.velocity)
         stretch = np.minimum(stretch, np.maximum(room, 1.0))
-        retimed = retime(current, stretch, line=current_line)
+        retimed = retime(current, stretch, line=current_line, ramp=LIMITS_RAMP,
+                         spread=LIMITS_SPREAD)
         floored = floored[np.clip(np.rint(retimed.old_index).astype(int), 0, floored.size - 1)]
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
         current, current_line = retimed.trajectory, retimed.line

@@ -34,18 +34,14 @@ from scipy.ndimage import maximum_filter1d
 
 from .sampled import Trajectory
 
-#: Time (s) over which the stretch rises from 1 and falls back (half-width of the bell).
-#: A slowed window costs about (2 RAMP_TIME + 2 SPREAD_TIME) h for a stretch 1 + h, most of
-#: it in the ramps: with 0.1 and 0.02 instead (measured 2026-12-03, ``run`` with
-#: ``pid-high``) LinuxCNC's boat examples took +4.2 % (A-C) and +4.5 % (B-C) instead of
-#: +6.8 % and +7.4 %, but the built-in ``circle`` / ``pid-high``, whose slowed window ends at
-#: its final stop, kept 0.0-0.1 % of its max tip error removed on the worst draw instead of
-#: 76-79 % (three nanometre draws of its points, each); 0.15 and 0.02 left the boats at +5.3
-#: and +5.8 %.
+#: Time (s) over which the stretch rises from 1 and falls back (half-width of the bell), by
+#: default. A slowed window costs about (2 ramp + 2 spread) h for a stretch 1 + h, most of it
+#: in the ramps; compensation within the limits takes shorter ones
+#: (:data:`precontour.compensation.within_limits.LIMITS_RAMP`).
 RAMP_TIME = 0.2
 #: Time (s) either side of a sample that needs slowing over which its stretch is held, so the
 #: motion is already slow when it reaches the sample (the drives and the compensation act
-#: over tens of milliseconds around it).
+#: over tens of milliseconds around it), by default.
 SPREAD_TIME = 0.05
 #: Stretch below which a sample counts as not slowed (round-off of the smoothing).
 _NEGLIGIBLE = 1e-12
@@ -197,6 +193,62 @@ def added_stretch(stretch: np.ndarray, ts: float, *, ramp: float = RAMP_TIME,
     scale = np.ones_like(sums)
     scale[1:] = np.ceil(sums[1:] - 1e-9) / sums[1:]
     return smooth * scale[label]
+
+
+def held_through_stops(stretch: np.ndarray, q: np.ndarray, *, levels=None) -> np.ndarray:
+    """``stretch`` (N,) raised, over each approach to a rest and each start from one, to the
+    largest stretch in it or in that rest.
+
+    An approach is the run of samples over which the commands' speed (the largest step of any
+    axis; ``levels``, shape (5,), scales each axis's, e.g. by its velocity limit) falls until
+    the commands rest exactly; a start, the run over which it rises from a rest. A stretch
+    within a rest (the corrections settling after a stop, or leading a start) counts for the
+    approach before it and the start after it.
+
+    Why: where friction decides where the axes come to rest, the speed is not to change while
+    they decelerate to it: a stretch that rises there adds its own deceleration (q_s r',
+    see the module docstring). On ``circle`` with ``pid-high`` and a 0.1 s ramp, the corrections
+    settling 30 ms after the final stop asked for slowing; without the hold the speed fell
+    from 0.99 to 0.78 of the planned one during the deceleration, and the final stop's error
+    on the realistic machine rose
+    (:data:`precontour.compensation.within_limits.LIMITS_RAMP`)."""
+    from scipy import ndimage
+
+    stretch = np.asarray(stretch, dtype=float)
+    q = np.asarray(q, dtype=float)
+    n = stretch.size
+    if n < 3 or not np.any(stretch > 1.0):
+        return stretch
+    step = np.abs(np.diff(q, axis=0))
+    if levels is not None:
+        step = step / np.asarray(levels, dtype=float)
+    speed = np.concatenate([[0.0], step.max(axis=1)])      # per sample: the step into it
+    rest = speed == 0.0
+    rest_label, rests = ndimage.label(rest)
+    rest_peak = np.ones(rests + 1)
+    if rests:
+        rest_peak[1:] = ndimage.maximum(stretch, rest_label, np.arange(1, rests + 1))
+    out = stretch.copy()
+    falling = np.zeros(n, dtype=bool)
+    falling[1:] = speed[1:] < speed[:-1]
+    rising = np.zeros(n, dtype=bool)
+    rising[:-1] = speed[:-1] < speed[1:]
+    for mask, approach in ((falling, True), (rising, False)):
+        label, count = ndimage.label(mask & ~rest)
+        if not count:
+            continue
+        peak = ndimage.maximum(stretch, label, np.arange(1, count + 1))
+        # one pass per approach or start (a program's stops: O(samples) in all)
+        for k, (run,) in enumerate(ndimage.find_objects(label)):
+            first, last = run.start, run.stop - 1
+            beside = last + 1 if approach else first - 1
+            if not 0 <= beside < n or not rest[beside]:
+                continue
+            need = max(peak[k], rest_peak[rest_label[beside]])
+            if need > 1.0:
+                lo, hi = max(first - 1, 0), min(last + 2, n)
+                out[lo:hi] = np.maximum(out[lo:hi], need)
+    return out
 
 
 def slowdowns_of(old_index: np.ndarray, ts: float, *, t0: float = 0.0,
