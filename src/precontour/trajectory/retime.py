@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy import ndimage
 from scipy.ndimage import maximum_filter1d
 
 from .sampled import Trajectory
@@ -212,8 +213,6 @@ def held_through_stops(stretch: np.ndarray, q: np.ndarray, *, levels=None) -> np
     from 0.99 to 0.78 of the planned one during the deceleration, and the final stop's error
     on the realistic machine rose
     (:data:`precontour.compensation.within_limits.LIMITS_RAMP`)."""
-    from scipy import ndimage
-
     stretch = np.asarray(stretch, dtype=float)
     q = np.asarray(q, dtype=float)
     n = stretch.size
