@@ -421,6 +421,62 @@ def test_run_plans_as_trajectory_does(tmp_path, capsys):
     assert "more than 100" in capsys.readouterr().err
 
 
+def test_format_is_the_same_option_in_trajectory_and_run(capsys):
+    """``--format``, as ``read_toolpath(format=...)``: the same choices and help in both."""
+    import argparse
+
+    from precontour.cli import build_parser
+    from precontour.toolpath.readers import FORMATS
+    parser = build_parser()
+    # the commands' parsers, as scripts/make_cli_reference.py finds them
+    commands = next(a for a in parser._actions
+                    if isinstance(a, argparse._SubParsersAction)).choices
+    options = {name: next(a for a in commands[name]._actions if a.dest == "format")
+               for name in ("trajectory", "run")}
+    assert options["trajectory"].choices == options["run"].choices == FORMATS
+    assert options["trajectory"].help == options["run"].help
+    assert options["trajectory"].default is options["run"].default is None
+    for argv in (["trajectory", "p.txt", "-o", "t.csv"],
+                 ["run", "p.txt", "--machine", "zhang2013", "--controller", "pid-low", "-o",
+                  "o.ngc"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args(argv + ["--format", "ngc"])
+        assert capsys.readouterr().err.strip().splitlines()[-1] == (
+            f"precontour {argv[0]}: error: argument --format: invalid choice: 'ngc' (choose "
+            "from 'clcsv', 'apt', 'gcode')")
+
+
+def test_format_reads_a_file_whose_extension_says_none(tmp_path, capsys):
+    """A G-code program and CL data saved as .txt: refused by the extension, read with
+    --format as the same file with its own extension is (trajectory and run)."""
+    text = "G21 G90 G94\nG0 X0 Y0 Z300 A0 C0\nG1 X4 F1200\nG1 Y4\nM2\n"
+    (tmp_path / "square.ngc").write_text(text)
+    (tmp_path / "square.txt").write_text(text)
+    (tmp_path / "path.txt").write_text("Px,Py,Pz,Oi,Oj,Ok\n0,0,0,0,0,1\n4,0,0,0,0,1\n")
+    out = {name: str(tmp_path / f"{name}.csv") for name in ("ngc", "txt", "cl")}
+    assert main(["trajectory", str(tmp_path / "square.txt"), "-o", out["txt"]]) == 2
+    err = capsys.readouterr().err
+    assert "square.txt: unknown tool-path extension '.txt'" in err and "--format" in err, err
+    assert main(["trajectory", str(tmp_path / "square.ngc"), "-o", out["ngc"]]) == 0
+    assert main(["trajectory", str(tmp_path / "square.txt"), "--format", "gcode", "-o",
+                 out["txt"]]) == 0
+    assert "program " in capsys.readouterr().out
+    ngc, txt = (read_columns(out[name], list(HEADER)) for name in ("ngc", "txt"))
+    for column in HEADER:
+        np.testing.assert_array_equal(txt[column], ngc[column])
+    assert main(["trajectory", str(tmp_path / "path.txt"), "--format", "clcsv", "-o",
+                 out["cl"]]) == 0
+    assert main(["trajectory", str(tmp_path / "path.txt"), "--format", "apt", "-o",
+                 out["cl"]]) == 2
+    assert "path.txt" in capsys.readouterr().err
+    # run: the G-code's places are its lines
+    assert main(["run", str(tmp_path / "square.txt"), "--format", "gcode", "--machine",
+                 "zhang2013", "--controller", "pid-low", "--draws", "1", "-o",
+                 str(tmp_path / "square_out.ngc")]) == 0
+    assert re.search(r"tip, compensated .* line [34] ", capsys.readouterr().out)
+    assert (tmp_path / "square_out.ngc").exists()
+
+
 def test_machines_template_is_refused_for_unknown_types(capsys):
     with pytest.raises(SystemExit):
         main(["machines", "--template", "nope"])

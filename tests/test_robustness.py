@@ -712,6 +712,17 @@ def test_excite_travel_beyond_the_axis_is_refused(work, capsys):
                   work, capsys)
 
 
+@pytest.mark.parametrize("axes", ["", "  "])
+def test_excite_without_axes_is_refused(work, capsys, axes):
+    """``--axes ""`` (from a fuzz suite: it excited all five axes, exit 0)."""
+    fails_cleanly(["excite", "--axes", axes, "-o", "e.csv"],
+                  r"^precontour: error: field '--axes': no axis given; use letters of XYZAC "
+                  r"\(or leave --axes out for all five\)$", work, capsys)
+    fails_cleanly(["excite", "--axes", "XQ", "-o", "e.csv"],
+                  r"^precontour: error: field '--axes': unknown axis 'Q'; use letters of "
+                  r"XYZAC$", work, capsys)
+
+
 def test_excite_on_a_short_axis_stays_within_its_travel(work, capsys):
     text = builtin_machine_text().replace("[drives.X]\n", "[drives.X]\np_min = -10\np_max = 10\n")
     assert "p_min = -10" in text

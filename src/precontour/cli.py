@@ -28,8 +28,8 @@ from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS, DE
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
                        DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
                        DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
-                       GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, builtin_machines,
-                       default_max_samples)
+                       GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, TOOLPATH_FORMATS,
+                       builtin_machines, default_max_samples)
 from .errors import NOTICES, InputError, PrecontourError
 from .files import OutputSet, Terminated, input_files, interruption, sigterm_as_exception
 
@@ -176,6 +176,7 @@ def _add_trajectory_command(commands) -> None:
                              "or G-code .nc/.ngc/.gcode/.tap/.mpf")
     source.add_argument("--builtin", choices=BUILTIN_PATHS, metavar="NAME",
                         help=f"built-in test path: {', '.join(BUILTIN_PATHS)}")
+    _add_toolpath_format_option(trajectory)
     _add_machine_options(trajectory, controller=None)
     trajectory.add_argument("--feed", type=_positive_float, default=DEFAULT_FEED, metavar="MM_S",
                             help=f"maximum tool tip feed in mm/s for CL data and built-in paths "
@@ -406,6 +407,7 @@ def _add_run_command(commands) -> None:
         epilog=_machines_epilog())
     run.add_argument("program", type=Path,
                      help="NC program (.nc/.ngc/.gcode/...) or CL data (.csv/.apt)")
+    _add_toolpath_format_option(run)
     _add_machine_options(run, required=True, controller=REQUIRED)
     _add_planning_options(run)
     _add_iterations_option(run)
@@ -526,6 +528,15 @@ def _add_machine_options(parser: argparse.ArgumentParser, *, required: bool = Fa
     else:
         parser.add_argument("--controller", default=controller,
                             help=f"controller name in the machine file (default: {controller})")
+
+
+def _add_toolpath_format_option(parser: argparse.ArgumentParser) -> None:
+    """``--format`` of the commands that read a tool path (trajectory, run): the library's
+    ``read_toolpath(format=...)``."""
+    parser.add_argument("--format", choices=TOOLPATH_FORMATS, default=None,
+                        help="format of the tool path file: clcsv (CL-data CSV), apt (APT CL "
+                             "data) or gcode (default: from its extension; needed for .txt "
+                             "and other extensions)")
 
 
 def _add_output(parser: argparse.ArgumentParser, *, help: str, metavar: str | None = None
@@ -737,7 +748,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
     ts = machine.servo_period if args.ts is None else args.ts
     if args.builtin:
         toolpath = builtin_path(args.builtin)
-    elif toolpath_format(args.toolpath) == "gcode":
+    elif toolpath_format(args.toolpath, args.format) == "gcode":
         program = read_program(args.toolpath, machine, tcp=args.tcp)
         for notice in program.notices:
             print(f"precontour: {notice}", file=sys.stderr)
@@ -752,7 +763,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
         if args.tcp:
             raise InputError("--tcp applies to G-code programs only (CL data gives the tool "
                              "tip already)", source=str(args.toolpath), field="--tcp")
-        toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units)
+        toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units,
+                                 format=args.format)
     if toolpath is not None:
         traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
                                    max_samples=args.max_samples)
@@ -983,16 +995,20 @@ def run_excite(args: argparse.Namespace) -> int:
     check_excitation_output(args.output, input_files(args.machine))
     machine = load_machine(args.machine)
     letters = tuple(machine.axis_names)
-    given_letters = tuple(dict.fromkeys((args.axes or "".join(letters)).upper()))
+    requested = "".join(letters) if args.axes is None else args.axes.strip()
+    if not requested:
+        raise InputError(f"no axis given; use letters of {''.join(letters)} (or leave --axes "
+                         "out for all five)", field="--axes")
+    given_letters = tuple(dict.fromkeys(requested.upper()))
     if "A" in given_letters and "A" not in letters and letters[3] == "B":
         from .errors import notice
 
         notice("--axes: A read as the B axis of this B-C machine (the old spelling; write B)")
         given_letters = tuple(dict.fromkeys("B" if a == "A" else a for a in given_letters))
     unknown = [a for a in given_letters if a not in letters]
-    if unknown or not given_letters:
-        raise InputError(f"unknown axis {unknown[0] if unknown else ''!r}; use letters of "
-                         f"{''.join(letters)}", field="axes")
+    if unknown:
+        raise InputError(f"unknown axis {unknown[0]!r}; use letters of {''.join(letters)}",
+                         field="--axes")
     # the library names the q slots X Y Z A C on every machine
     axes = tuple(AXES[letters.index(a)] for a in given_letters)
     given = {a: args.travel_rotary if a in ROTARY_AXES else args.travel_linear for a in axes}
@@ -1045,7 +1061,7 @@ def run_run(args: argparse.Namespace) -> int:
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
                              limits=LimitOptions(min_speed=args.min_speed),
-                             contour_tolerance=feed, draws=args.draws)
+                             contour_tolerance=feed, draws=args.draws, format=args.format)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):

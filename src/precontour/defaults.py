@@ -28,6 +28,11 @@ DEFAULT_SERVO_PERIOD = 0.001
 #: Names of the built-in test paths (:func:`precontour.trajectory.builtin_path`).
 BUILTIN_PATHS: tuple[str, ...] = ("paper", "circle", "cone", "fan")
 
+# -- tool paths in ----------------------------------------------------------------------------
+#: Tool path formats (``read_toolpath(format=...)``, ``trajectory``/``run --format``); the
+#: reader of each is :mod:`precontour.toolpath.readers`.
+TOOLPATH_FORMATS: tuple[str, ...] = ("clcsv", "apt", "gcode")
+
 # -- trajectory planning ------------------------------------------------------------------
 #: Default maximum tool tip feed, mm/s (the paper's test path).
 DEFAULT_FEED = 100.0

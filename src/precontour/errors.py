@@ -76,13 +76,14 @@ class InputError(PrecontourError, ValueError):
 
 
 def _located(message: str, source, row, field, row_name: str = "row",
-             field_name: str = "field") -> str:
+             field_name: str | None = "field") -> str:
+    # field_name None: the message itself begins with the field (ForeignSyntaxError)
     where = []
     if source is not None:
         where.append(str(source))
     if row is not None:
         where.append(f"{row_name} {row}")
-    if field is not None:
+    if field is not None and field_name is not None:
         where.append(f"{field_name} {field!r}")
     return (", ".join(where) + ": " if where else "") + message
 
@@ -110,6 +111,15 @@ class ProgramError(ToolPathError):
 
     ROW_NAME = "line"
     FIELD_NAME = "word"
+
+
+class ForeignSyntaxError(ProgramError):
+    """A line of an NC program is another controller's language (Sinumerik 840D, Heidenhain
+    conversational, Haas): the message begins with the construct as written
+    (``part.mpf, line 3: 'DEF REAL _X' is Sinumerik 840D syntax ...``), so ``field``, the
+    construct, is not repeated before it."""
+
+    FIELD_NAME = None
 
 
 class UnsupportedControllerError(PrecontourError, ValueError):

@@ -64,7 +64,7 @@ Progress = Callable[[int, int, str], None]
 def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False,
                             dwell: float = DEFAULT_DWELL,
                             corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
-                            max_samples: int | None = None
+                            max_samples: int | None = None, format: str | None = None
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program, and its non-motion lines to keep (or None).
 
@@ -79,9 +79,11 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     samples carry the file line of the CL point they move to, and it has no lines to keep.
     ``dwell``, ``corner_tolerance`` (G-code only) and ``max_samples`` (default
     :func:`~precontour.defaults.default_max_samples`) are the planning options of the
-    ``trajectory`` command.
+    ``trajectory`` command. ``format``: the file's format, instead of the one its extension
+    says (:func:`~precontour.toolpath.read_toolpath`'s).
     """
-    source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples)
+    source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples,
+                              format=format)
     return plan_run_program(source, machine, dwell=dwell, corner_tolerance=corner_tolerance,
                             max_samples=max_samples)
 
@@ -96,13 +98,21 @@ class RunProgram:
     toolpath: object | None = None
     tcp: bool = False
 
+    @property
+    def format(self) -> str:
+        """``"gcode"``, or the CL data's format (``"clcsv"``, ``"apt"``)."""
+        return "gcode" if self.program is not None else self.toolpath.format
+
 
 def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
-                     dwell: float = DEFAULT_DWELL, max_samples: int | None = None) -> RunProgram:
+                     dwell: float = DEFAULT_DWELL, max_samples: int | None = None,
+                     format: str | None = None) -> RunProgram:
     """Read and check ``run``'s input, before any progress is shown: every error in the file
     comes first, and for G-code also a trajectory too long to make (the sample estimate of
-    :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``)."""
-    if toolpath_format(path) == "gcode":
+    :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``).
+    ``format``: as :func:`~precontour.toolpath.read_toolpath`'s (None: from the extension)."""
+    format = toolpath_format(path, format)
+    if format == "gcode":
         program = read_program(path, machine, tcp=tcp)
         for text in program.notices:
             notice(text)
@@ -112,7 +122,8 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")
-    return RunProgram(Path(path), toolpath=read_toolpath_report(path, machine=machine))
+    return RunProgram(Path(path), toolpath=read_toolpath_report(path, machine=machine,
+                                                                format=format))
 
 
 def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
@@ -254,6 +265,13 @@ class RunResult:
     feed: FeedWithinTolerance | None = None
     #: Both commands judged on the draws of a machine ensemble (``run --draws``), or None.
     draws: "DrawCheck | None" = None
+    #: The source's format (``"gcode"``, ``"clcsv"``, ``"apt"``); None: from its extension.
+    source_format: str | None = None
+
+    @property
+    def place(self) -> str:
+        """What a place in the source is called: a G-code program's line, CL data's row."""
+        return "line" if toolpath_format(self.source, self.source_format) == "gcode" else "row"
 
     @property
     def commands(self) -> Trajectory:
@@ -272,9 +290,8 @@ class RunResult:
         commands (what remains), then with the uncompensated ones. Samples are those of
         ``limited.reference`` (the timing after any slow-down), lines ``limited.line``."""
         t, line = self.limited.reference.t, self.limited.line
-        where = "line" if toolpath_format(self.source) == "gcode" else "row"
         return tuple(largest_error(getattr(errors, quantity), t, line, quantity=quantity,
-                                   commands=commands, where=where)
+                                   commands=commands, where=self.place)
                      for commands, errors in (("compensated", self.simulated_after),
                                               ("uncompensated", self.simulated_before))
                      for quantity in ("tip", "orientation"))
@@ -326,7 +343,7 @@ class RunResult:
                          f"mean {_reduction(before.mean(), after.mean())}")
         from .compensation.blocks import MARGINS
 
-        where = "line" if toolpath_format(self.source) == "gcode" else "row"
+        where = self.place
         if self.draws is not None:
             lines += self.draws.table(where, learned=self.limited.result.learning is not None)
         lines.append("largest simulated errors, where:")
@@ -436,13 +453,15 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 min_speed: float | None = None, feed_scale_max: float | None = None,
                 feed_scale_min: float | None = None,
                 write_anyway: bool | None = None,
-                draws: int = DEFAULT_CHECK_DRAWS) -> RunResult:
+                draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
     and ``controller`` have no default: a program compensated for another machine than the
     user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``:
-    planning, as :func:`load_program_trajectory`. ``tolerance``: the G-code decimation
+    planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
+    of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s).
+    ``tolerance``: the G-code decimation
     tolerance per axis (:func:`~.toolpath.writers.gcode_tolerances`).
 
     ``learn``: passes of learning (a number, or :class:`~.options.LearningOptions`) against
@@ -492,13 +511,13 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                         max_samples=max_samples, iterations=iterations, tolerance=tolerance,
                         progress=progress, workers=workers, learning=learning,
                         ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
-                        draws=draws)
+                        draws=draws, format=format)
 
 
 def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
                  max_samples, iterations, tolerance, progress, workers,
                  learning: LearningOptions, ensemble, limits: LimitOptions,
-                 feed_options: ToleranceOptions, draws: int) -> RunResult:
+                 feed_options: ToleranceOptions, draws: int, format: str | None) -> RunResult:
     learn = learning.passes
     # the draws learning decides on and run checks on: the options', else ``ensemble``
     learning_ensemble = learning.ensemble or ensemble or MachineEnsemble()
@@ -526,7 +545,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     machine_obj = load_machine(machine)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
-                              max_samples=max_samples)
+                              max_samples=max_samples, format=format)
     step(0, f"plan {program}")
     planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
                                             corner_tolerance=corner_tolerance,
@@ -569,7 +588,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
             progress=lambda message: step(1, message), models=models, limits=axis_limits,
             limits_min_speed=min_speed, iterations=iterations,
-            where="line" if toolpath_format(program) == "gcode" else "row")
+            where="line" if source.format == "gcode" else "row")
         timings["feed within tolerance"] = time.perf_counter() - start
         found = feed.compensated
         if not found.met and not write_anyway:
@@ -632,7 +651,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
                      stream=None if outputs is None else outputs.stream, feed=feed,
-                     draws=checked)
+                     draws=checked, source_format=source.format)
 
 
 def _rapid_lines(source: RunProgram) -> tuple[int, ...]:

@@ -5,6 +5,7 @@ machine's direct kinematics and a sequential reference interpreter."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from precontour.errors import InputError, PrecontourError, ProgramError
+from precontour.errors import ForeignSyntaxError, InputError, PrecontourError, ProgramError
 from precontour.machine.machine_file import load_machine
 from precontour.toolpath import read_gcode, read_gcode_report, read_program, read_toolpath
 from precontour.toolpath.gcode import ARC_CHORD_TOLERANCE, ARC_RADIUS_TOLERANCE
@@ -1032,3 +1033,141 @@ def test_fanuc_style_trunnion_program(tmp_path):
     assert not program.tcp_move[last[42]]
     trajectory = program_trajectory(program, machine)
     assert summarize(trajectory, machine).within_limits
+
+
+# --------------------------------------------------------------------------- refusals
+
+
+def _refusal(path, machine):
+    with pytest.raises(ProgramError) as info:
+        read_program(path, machine)
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+# Each refusal names the construct as written, the file, the line (1-based, of the file), and
+# what to do; the lines after the refused one are never reached.
+@pytest.mark.parametrize("text, line, construct, what", [
+    ("G21\nOFinal ToolPath\nG0 X0\n", 2, "OFinal ToolPath",
+     r"O takes a program number \(O1000\) or a subroutine name in < > \(o<name> sub\); "
+     r"post-process with the program's name in a comment, \(Final ToolPath\), or without it"),
+    ("; part\nN10 G17\nN20 DEF REAL _X\nN30 G0 X0\n", 3, "DEF REAL _X",
+     r"is Sinumerik 840D syntax \(a variable definition\), which this reader does not read; "
+     r"post-process for LinuxCNC/Fanuc-style G-code$"),
+    ('N10 G17\nN20 CYCLE800(1,"TC1",200000,57,0,0,0,0,30,0,0,0,0,1,100,1)\n', 2,
+     "CYCLE800(...)", r"is Sinumerik 840D syntax \(the swivel cycle\), which this reader does "
+                      r"not read; post-process for LinuxCNC/Fanuc-style G-code$"),
+    ('G21\nN20 MSG("ROUGHING")\n', 2, 'MSG("ROUGHING")',
+     r"is Sinumerik 840D syntax \(an operator message\), which this reader does not read; "
+     r"post-process with the message as a comment, \(MSG, text\)$"),
+    ("G21\n\nN30 AROT Z45\n", 3, "AROT", r"Sinumerik 840D syntax \(a programmable frame\)"),
+    ("G21\nN20 TRANS X10 Y5\n", 2, "TRANS", r"Sinumerik 840D syntax \(a programmable frame\)"),
+    ("0 BEGIN PGM PART MM\n1 BLK FORM 0.1 Z X+0 Y+0 Z-20\n", 1, "BEGIN PGM",
+     r"is Heidenhain TNC conversational syntax \(a conversational block\), which this reader "
+     r"does not read; post-process for LinuxCNC/Fanuc-style G-code$"),
+    ("G21 G90\n_camtolerance=.02\n", 2, "_camtolerance=.02",
+     r"is Sinumerik 840D syntax \(a variable assignment\), which this reader does not read; "
+     r"post-process without it$"),
+    ("%\nO01000\nG0 G234 Z50. H1\n", 3, "G234",
+     r"is Haas syntax \(tool centre point control, TCPC\), which this reader does not read; "
+     r"post-process for LinuxCNC/Fanuc-style G-code, tool centre point as G43.4$"),
+    ("%\nO01000\nG254\n", 3, "G254",
+     r"is Haas syntax \(dynamic work offset, DWO\), which this reader does not read; "
+     r"post-process without it: in tool centre point mode \(G43.4\) X Y Z are already in "
+     r"the workpiece frame$"),
+])
+def test_refusals_name_the_construct_the_line_and_what_to_do(machine, tmp_path, text, line,
+                                                             construct, what):
+    path = write(tmp_path, text)
+    error = _refusal(path, machine)
+    assert (error.row, error.field) == (line, construct)
+    message = str(error)
+    assert message.startswith(f"{path}, line {line}")
+    assert repr(construct) in message and re.search(what, message), message
+
+
+def test_a_foreign_construct_is_named_once_before_its_message(machine, tmp_path):
+    path = write(tmp_path, "N10 G17\nN20 DEF REAL _X\n", "part.mpf")
+    error = _refusal(path, machine)
+    assert isinstance(error, ForeignSyntaxError)
+    assert str(error).startswith(f"{path}, line 2: 'DEF REAL _X' is Sinumerik 840D syntax")
+
+
+@pytest.mark.parametrize("text", ["G21\n(unterminated\nG1 X1\n", "G21\nO100 (sub\nG1 X1\n",
+                                  "G21\no(\n"])
+def test_an_unterminated_comment_is_refused_on_its_own_line(machine, tmp_path, text):
+    """The O-word scan reads some lines before the program runs (an O on line 2 was
+    reported as line 0)."""
+    error = _refusal(write(tmp_path, text), machine)
+    assert error.row == 2
+    assert re.search(r", line 2: unbalanced or nested '\(' comment: close each comment with "
+                     r"'\)' on its line", str(error)), str(error)
+
+
+def test_a_comment_that_names_a_construct_is_no_construct(machine, tmp_path):
+    """Comments are left out before another language's constructs are looked for."""
+    error = _refusal(write(tmp_path, "G0 X0\nG1 X1 Y (TRANS) ; DEF REAL\n"), machine)
+    assert type(error) is ProgramError
+    assert str(error).endswith("line 2, word 'Y': cannot parse number 'Y'")
+
+
+# Public programs as their posts write them, read up to their first line in the language.
+
+# github.com/polymech-info/heidenhain-simulator/blob/db5968cb6b6dbf5efb621c8b202c9b8508f2dba3/
+# samples/asterix/spot-drill.h, lines 1-3, 11, 14-15 (block numbers 0-2, 10, 13, 14)
+HEIDENHAIN_LINES = ["0  BEGIN PGM spot-drill MM ", "1  BLK FORM 0.1 Z  X+0  Y-200  Z-15",
+                    "2  BLK FORM 0.2  X+500  Y+0  Z+0", "10 TOOL CALL 7 Z S624",
+                    "13 L  X+451.5  Y-25.5 R0 FMAX", "14 L  Z+15 R0 FMAX"]
+# Lines as the Siemens SINUMERIK 840D post writes them,
+# github.com/AntonTroskin/posts/blob/dc6a9b29535e2d146975b24623a14634d393743b/siemens-840d.cps:
+# the header (line 307), a comment (writeComment, line 212; sequence numbers from 10 by 1),
+# the tool by name or number (lines 1157-1158), the swivel cycle (line 700), TRAORI (1281).
+SINUMERIK_LINES = ["; %_N_PART1_MPF", "N10 ; PART1", 'N11 T="BALL6" D1', "N12 M6",
+                   'N13 CYCLE800(0,"TC1",200000,27,0,0,0,0,30,0,0,0,0,0)', "N14 TRAORI"]
+# Lines as the HAAS Next Generation Control post writes them (sequence numbers off),
+# github.com/ThomasLeMezo/enstabretagne-inventor-cam/blob/1227fed13ee397fcbeb7b23d7e50058f700c02d4/
+# postpro/haas_vf2_inspect_surface_ENSTA.cps: "%" (line 1038), the program number (1053),
+# G90 G94 G17 and G21 (1260, 1267), dynamic work offsets on (1678), TCPC on (3596).
+HAAS_LINES = ["%", "O01001 (PART1)", "G90 G94 G17", "G21", "G254", "G0 G234 H1 (TCPC ON)"]
+
+
+@pytest.mark.parametrize("lines, line, construct, language", [
+    (HEIDENHAIN_LINES, 1, "BEGIN PGM", "Heidenhain TNC conversational"),
+    (HEIDENHAIN_LINES[1:], 1, "BLK FORM", "Heidenhain TNC conversational"),
+    (HEIDENHAIN_LINES[3:], 1, "TOOL CALL", "Heidenhain TNC conversational"),
+    (HEIDENHAIN_LINES[4:], 1, "L  X+451.5  Y-25.5 R0 FMAX", "Heidenhain TNC conversational"),
+    (SINUMERIK_LINES, 3, 'T="BALL6"', "Sinumerik 840D"),
+    (SINUMERIK_LINES[:2] + ["N11 T1 D1"] + SINUMERIK_LINES[3:], 5, "CYCLE800(...)",
+     "Sinumerik 840D"),
+    (HAAS_LINES, 5, "G254", "Haas"),
+    (HAAS_LINES[:4] + HAAS_LINES[5:], 5, "G234", "Haas"),
+])
+def test_a_program_in_another_language_says_which(machine, tmp_path, lines, line, construct,
+                                                  language):
+    path = write(tmp_path, "\n".join(lines) + "\n", "part.nc")
+    error = _refusal(path, machine)
+    assert isinstance(error, ForeignSyntaxError)
+    assert (error.row, error.field) == (line, construct)
+    assert str(error).startswith(f"{path}, line {line}: {construct!r} is {language} syntax")
+
+
+def test_a_refusal_says_which_language_the_program_looks_like(machine, tmp_path):
+    """A refused construct of no language's own (Sinumerik's G60, exact stop) in a program
+    that shows one elsewhere, even after it; a plain program's refusal says nothing more."""
+    path = write(tmp_path, "N10 G60 G0 X0\nN20 G17\nN30 TRAORI\n", "part.mpf")
+    assert str(_refusal(path, machine)) == (
+        f"{path}, line 1, word 'G60': unsupported G code G60; the program looks like "
+        "Sinumerik 840D ('TRAORI' on line 3): post-process for LinuxCNC/Fanuc-style G-code")
+    path = write(tmp_path, "G0 X0\nG1 B45. F100\nN30 MSG(\"TOOL 2\")\n", "part.nc")
+    assert str(_refusal(path, machine)).endswith(
+        "unsupported word 'B45.' (axes are X Y Z A C); the program looks like Sinumerik 840D "
+        "('MSG(\"TOOL 2\")' on line 3): post-process for LinuxCNC/Fanuc-style G-code")
+    path = write(tmp_path, "G0 X0\nG60 X1\n", "plain.ngc")
+    assert str(_refusal(path, machine)) == f"{path}, line 2, word 'G60': unsupported G code G60"
+
+
+def test_the_sinumerik_words_the_reader_reads_are_still_read(machine, tmp_path):
+    """Nothing read before is refused: TRAORI/TRAFOOF, ; comments, N numbers, % and O."""
+    program = read(tmp_path, machine, "%\nO1000\nN10 G0 X0 Y0 Z0 A0 C0 ; start\nN20 TRAORI\n"
+                                      "N30 G1 X1 F100\nN40 TRAFOOF\n%\n")
+    assert program.start_line == 3 and program.n_moves == 1 and program.tcp_move.all()

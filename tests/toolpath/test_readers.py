@@ -301,9 +301,40 @@ def test_read_toolpath_extension_table_and_format_override(tmp_path):
     assert read_toolpath(txt, format="apt").n_points == 2
 
 
+def test_the_formats_are_the_command_lines(tmp_path):
+    """--format offers the formats the readers read (precontour.defaults keeps the list so
+    that --help imports no reader); a format given is checked, else the extension decides."""
+    from precontour.defaults import TOOLPATH_FORMATS
+    from precontour.toolpath.readers import FORMATS
+    assert TOOLPATH_FORMATS == FORMATS == tuple(EXTENSIONS)
+    assert toolpath_format("path.txt", "gcode") == "gcode"
+    assert toolpath_format("path.csv", "apt") == "apt"
+    with pytest.raises(InputError, match=r"field 'format': unknown tool-path format 'nc'; use "
+                                         r"one of clcsv, apt, gcode"):
+        toolpath_format("path.nc", "nc")
+
+
+def test_a_heidenhain_program_is_refused_by_its_language(machine, tmp_path):
+    """``.h``: Heidenhain conversational, named so by the extension; read as G-code anyway
+    (format given), its first block says the same."""
+    path = write(tmp_path, "spot.h", "0  BEGIN PGM spot MM\n1  L  Z+15 R0 FMAX\n")
+    with pytest.raises(ToolPathError, match=r"^[^\n]*spot.h: '.h' is the extension of "
+                                            r"Heidenhain TNC conversational programs, which "
+                                            r"precontour does not read; post-process for "
+                                            r"LinuxCNC/Fanuc-style G-code \(if the file is "
+                                            r"G-code after all: --format gcode, or "
+                                            r"format='gcode'\)$"):
+        read_toolpath(path, machine=machine)
+    with pytest.raises(ToolPathError, match=r"spot.h, line 1: 'BEGIN PGM' is Heidenhain TNC "
+                                            r"conversational syntax"):
+        read_toolpath(path, machine=machine, format="gcode")
+
+
 @pytest.mark.parametrize("name, kwargs, error, match", [
     ("path.txt", {}, ToolPathError, r"path.txt: unknown tool-path extension '.txt'; supported: "
-                                    r".csv, .apt, .cls, .cl, .aptsource, .nc, .ngc"),
+                                    r".csv, .apt, .cls, .cl, .aptsource, .nc, .ngc, .gcode, "
+                                    r".gc, .tap, .mpf, .cnc, .iso \(or give the format, "
+                                    r"--format or format=, one of clcsv, apt, gcode\)"),
     ("path", {}, ToolPathError, r"unknown tool-path extension '\(none\)'"),
     ("path.apt", {"format": "step"}, InputError, r"field 'format': unknown tool-path format"),
     ("path.nc", {}, ToolPathError, r"path.nc: G-code gives machine-axis positions: reading "

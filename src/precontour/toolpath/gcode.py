@@ -59,7 +59,11 @@ Everything else -- subroutines in other files, Fanuc macros (G65, IF/GOTO/WHILE-
 G10 L1/L10/L11 (tool tables), cutter compensation, spindle-synchronized motion (tapping
 G74/G84, G33, G76), G88 (a manual retract), G68 rotation, G68.2 P1-P3, G95, HAL pins
 (``#<_hal[...]>``) -- is one :class:`~precontour.errors.ProgramError` naming the file, line
-and word.
+and word. A line in another controller's language (Sinumerik 840D's ``DEF``, ``MSG(...)``,
+``CYCLE800(...)``; Heidenhain conversational; Haas's ``G234``, ``G254``) is a
+:class:`~precontour.errors.ForeignSyntaxError` naming the construct as written and the
+language (:mod:`._dialects`); a refused construct that is none of these says which language
+the program looks like, when one of its lines shows one.
 """
 
 from __future__ import annotations
@@ -73,10 +77,11 @@ from types import MappingProxyType
 import numpy as np
 import pyarrow as pa
 
-from ..errors import InputError, ProgramError
+from ..errors import ForeignSyntaxError, InputError, ProgramError
 from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
 from ._common import INCH, ReadReport, finish, read_text
 from ._cycles import PECK_CLEARANCE_INCH, cycle_moves
+from ._dialects import REPOST, foreign_construct, program_language
 from ._ngc import (MAX_PARAMETER, NgcError, OWord, StructureError, compile_line, format_number,
                    needs_macro_reader, scan_structure)
 from .program import Program, ProgrammedMoves, Stop
@@ -168,7 +173,10 @@ _NO_CENTRE = (math.nan,) * 3
 _WORD = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\(([^()]*)\)")
 _TRAORI = re.compile(r"TRAORI(?:\([^)]*\))?")
-_BLANKS = str.maketrans("", "", " \t\r\f\v")
+_BLANK_CHARS = " \t\r\f\v"
+_BLANKS = str.maketrans("", "", _BLANK_CHARS)
+#: A name as written: a letter followed by letters, digits or _ (a keyword, a label).
+_NAME = re.compile(r"[A-Za-z_$][\w$]*")
 
 __all__ = ["read_program", "read_gcode", "read_gcode_report", "AXIS_WORDS",
            "ARC_CHORD_TOLERANCE", "ARC_RADIUS_TOLERANCE", "ARC_RADIUS_RTOL", "PASSTHROUGH_G"]
@@ -287,14 +295,42 @@ class _Reader:
         self.unknown_m = set()
         self.pending = []
         self.row = 0
+        self.lines = ()
+        self.language_note = None     # what refusals add about the program's language
 
     # ------------------------------------------------------------------ errors
     def fail(self, message, word=None):
         raise ProgramError(message, source=self.source, row=self.row, field=word)
 
+    def refuse(self, message, word=None, line=None):
+        """Fail on a construct the reader does not know (an unknown word, code or name):
+        named as another controller's syntax when it is one (in ``line``, as written), else
+        ``message``, with the language the program looks like when one of its lines shows
+        one (a ``G60`` among Sinumerik lines)."""
+        self.refuse_foreign(line)
+        self.fail(message + self.program_language_note(), word)
+
+    def refuse_foreign(self, line):
+        """Fail if ``line`` (a line the reader cannot read) holds another controller's
+        syntax: the refusal names it as written and the language."""
+        foreign = foreign_construct(line) if line else None
+        if foreign is not None:
+            raise ForeignSyntaxError(foreign.message(), source=self.source, row=self.row,
+                                     field=foreign.construct)
+
+    def program_language_note(self) -> str:
+        """``; the program looks like ...`` when a line of the program shows another
+        controller's language, else ``""`` (worked out once, at the first refusal)."""
+        if self.language_note is None:
+            found = program_language(self.lines)
+            self.language_note = "" if found is None else (
+                f"; the program looks like {found[1].language} ({found[1].construct!r} on "
+                f"line {found[0] + 1}): {REPOST}")
+        return self.language_note
+
     # ------------------------------------------------------------------ program
     def run(self, text: str) -> Program:
-        lines = text.splitlines()
+        lines = self.lines = text.splitlines()
         self.structure = self.scan(lines)
         self.prepared = [None] * len(lines)
         owords = self.structure.owords
@@ -327,6 +363,7 @@ class _Reader:
         codes = [None] * len(lines)
         for index, raw in enumerate(lines):
             if _MAYBE_OWORD.match(raw):
+                self.row = index + 1     # the line a comment error names
                 codes[index] = self.code_of(raw)[0]
         try:
             return scan_structure(codes)
@@ -375,7 +412,7 @@ class _Reader:
             self.fail("Fanuc macro statements (IF GOTO, WHILE DO END) are not supported; "
                       "LinuxCNC's O-word if and while are", fanuc.group())
         if code[:1] == "#" and not comments and needs_macro_reader(code):
-            compiled = self.compile(code)
+            compiled = self.compile(code, raw)
             if not compiled.words:
                 return (_SETTINGS, code)
         return (_GENERAL, code, traori, trafoof, raw.strip(), comments)
@@ -461,12 +498,22 @@ class _Reader:
     def code_of(self, raw: str):
         """(code, comments) of a line: the code upper case without blanks and comments
         (None for a line that is skipped: empty, ``%``, or block-deleted)."""
+        written = self.code_as_written(raw)
+        if written is None:
+            return None, []
+        text, comments = written
+        return text.upper().translate(_BLANKS), comments
+
+    def code_as_written(self, raw: str):
+        """(text, comments) of a line: the part that holds its code as written, comments
+        blanked out in their places (so that a refusal can name a construct as written); None
+        for a line that is skipped."""
         s = raw.strip()
         if not s or s[0] == "%":
-            return None, []
+            return None
         if s[0] == "/":
             if self.block_delete:
-                return None, []
+                return None
             s = s[1:]
         comments = []
         if ";" in s:
@@ -486,12 +533,13 @@ class _Reader:
             rest = None
         if "(" in s or ")" in s:
             comments = _COMMENT.findall(s)
-            s = _COMMENT.sub(" ", s)
+            s = _COMMENT.sub(lambda comment: " " * len(comment.group()), s)
             if "(" in s or ")" in s:
-                self.fail("unbalanced or nested '(' comment")
+                self.refuse("unbalanced or nested '(' comment: close each comment with ')' "
+                            "on its line, with no '(' inside", None, raw)
         if rest is not None:
             comments.append(rest)
-        return s.upper().translate(_BLANKS), comments
+        return s, comments
 
     def general(self, raw: str) -> bool:
         """Execute one line word by word (every construct, every error)."""
@@ -513,14 +561,16 @@ class _Reader:
             self.evaluate(prepared[1])
             return False
         _, code, traori, trafoof, text, comments = prepared
-        words = self.evaluate(code) if needs_macro_reader(code) else self.tokens(code)
+        words = (self.evaluate(code, text) if needs_macro_reader(code)
+                 else self.tokens(code, text))
         return self.execute(words, traori, trafoof, text, comments)
 
-    def tokens(self, code: str) -> list[tuple[str, float, str, str]]:
+    def tokens(self, code: str, line: str) -> list[tuple[str, float, str, str]]:
+        """The words of a line's ``code``; a refusal names what ``line`` holds instead."""
         if "=" in code:
             at = code.find("=")
-            self.fail("'=' sets a parameter only after one (#1 = 5, #<depth> = -2)",
-                      _word_at(code, max(at - 1, 0)))
+            self.refuse("'=' sets a parameter only after one (#1 = 5, #<depth> = -2)",
+                        _word_at(code, max(at - 1, 0)), line)
         words, pos = [], 0
         for match in _WORD.finditer(code):
             if match.start() != pos:
@@ -529,21 +579,45 @@ class _Reader:
             words.append((match.group(1), float(number), number, match.group()))
             pos = match.end()
         if pos != len(code):
-            char = code[pos]
-            if char.isascii() and char.isalpha():
-                bad = _word_at(code, pos)
-                self.fail(f"cannot parse number {bad!r}", bad)
-            if char in "0123456789.+-" and words:
-                bad = _word_at(code, pos - len(words[-1][3]))
-                self.fail(f"cannot parse number {bad!r}", bad)
-            self.fail(f"cannot parse {_word_at(code, pos)!r}")
+            self.refuse(*self.unreadable(line, code, pos, words), line)
         return words
 
+    def unreadable(self, line: str, code: str, pos: int, words) -> tuple[str, str | None]:
+        """(message, word) of a line's code that is no word from ``pos`` on (after ``words``):
+        a name (``FINISH``, ``OFinal ToolPath``), a letter without its number, a malformed
+        number, or another character."""
+        char = code[pos]
+        if char.isascii() and char.isalpha():
+            name = self.name_at(line, code, pos)
+            if name is not None:
+                return _unknown_name(name), name
+            bad = _word_at(code, pos)
+            return f"cannot parse number {bad!r}", bad
+        if char in "0123456789.+-" and words:
+            bad = _word_at(code, pos - len(words[-1][3]))
+            return f"cannot parse number {bad!r}", bad
+        return f"cannot parse {_word_at(code, pos)!r}", None
+
+    def name_at(self, line: str, code: str, pos: int) -> str | None:
+        """The name written in ``line`` where ``code[pos]``, a letter, stands, when more letters
+        follow it there (``FINISH``, ``OFinal ToolPath``: a program name after O is the rest
+        of the line); None for a letter whose number is missing (``X`` in ``X Y1``), or when
+        the code and the text cannot be lined up (a character whose upper case is longer)."""
+        text, _ = self.code_as_written(line)
+        places = [i for i, c in enumerate(text) if c not in _BLANK_CHARS]
+        if "".join(text[i] for i in places).upper() != code:
+            return None
+        start = places[pos]
+        name = _NAME.match(text, start)
+        if name is None or len(name.group()) < 2:
+            return None
+        return text[start:].strip() if text[start] in "oO" else name.group()
+
     # ------------------------------------------------------------------ parameters
-    def evaluate(self, code: str) -> list[tuple[str, float, str, str]]:
+    def evaluate(self, code: str, line: str | None = None) -> list[tuple[str, float, str, str]]:
         """The words of a line with parameters and expressions, evaluated; its parameter
         settings take effect after every value of the line is read (LinuxCNC)."""
-        compiled = self.compile(code)
+        compiled = self.compile(code, line)
         try:
             words = []
             for letter, value, spelled, literal in compiled.words:
@@ -559,12 +633,15 @@ class _Reader:
             self.set_parameter(target, number, text)
         return words
 
-    def compile(self, code: str):
+    def compile(self, code: str, line: str | None = None):
+        """The compiled code of a line (once per distinct code); a line that does not compile
+        and is another controller's syntax (``line`` as written) is refused as such."""
         compiled = self.compiled.get(code)
         if compiled is None:
             try:
                 compiled = compile_line(code)
             except NgcError as exc:
+                self.refuse_foreign(line)
                 self.fail(exc.message, exc.word)
             self.compiled[code] = compiled
         return compiled
@@ -901,7 +978,7 @@ class _Reader:
             if code in _UNSUPPORTED_G:
                 self.fail(_UNSUPPORTED_G[code], word)
             if code not in _KNOWN_G:
-                self.fail(f"unsupported G code {_g_name(code)}", word)
+                self.refuse(f"unsupported G code {_g_name(code)}", word, raw)
             for group_index, group in enumerate(_MODAL_GROUPS):
                 if code in group:
                     if group_index in seen_groups:
@@ -914,7 +991,7 @@ class _Reader:
         m_numbers = set()
         for code, word in m_codes:
             if code % 10:
-                self.fail(f"unsupported M code {word}", word)
+                self.refuse(f"unsupported M code {word}", word, raw)
             number = code // 10
             m_numbers.add(number)
             if number in self.tcp_on or number in self.tcp_off:
@@ -938,8 +1015,8 @@ class _Reader:
                 moves_axes = True
             elif (letter not in "FIJKRPQL" and letter not in _PASSTHROUGH_WORDS
                   and letter not in m_words):
-                self.fail(f"unsupported word {spelled[letter]!r} (axes are "
-                          f"{' '.join(self.axes)})", spelled[letter])
+                self.refuse(f"unsupported word {spelled[letter]!r} (axes are "
+                            f"{' '.join(self.axes)})", spelled[letter], raw)
         if 541 in codes and "P" not in spelled:
             self.fail("G54.1 needs the number of its work offset, P1 ... P300", g_word[541])
         if "L" in spelled and not (100 in codes or "L" in m_words or self.motion in _CYCLES
@@ -1911,6 +1988,16 @@ def _ffill(values: np.ndarray, initial: float) -> np.ndarray:
     index = np.where(np.isnan(values), -1, np.arange(values.size))
     index = np.maximum.accumulate(index)
     return np.where(index >= 0, values[np.maximum(index, 0)], initial)
+
+
+def _unknown_name(name: str) -> str:
+    """What a refusal says of a name that is no word (a letter and a number) and no construct
+    of another language the reader knows of."""
+    if name[0] in "oO":
+        return ("O takes a program number (O1000) or a subroutine name in < > (o<name> sub); "
+                f"post-process with the program's name in a comment, ({name[1:].strip()}), "
+                "or without it")
+    return "no G-code word (a letter and a number); post-process without it"
 
 
 def _word_at(code: str, pos: int) -> str:

@@ -9,7 +9,8 @@ gcode      ``.nc .ngc .gcode .gc .tap .mpf .cnc .iso`` (needs a machine)  :mod:`
 =========  ============================================================  ===================
 
 Extensions are matched without regard to case. ``.txt`` is deliberately not mapped (it is
-used for all three); pass ``format=`` for such files.
+used for all three); pass ``format=`` for such files. ``.h``, the extension of Heidenhain
+conversational programs, is refused by that name (:data:`FOREIGN_EXTENSIONS`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from types import MappingProxyType
 
 from ..errors import InputError, ToolPathError
 from ._common import ReadReport
+from ._dialects import HEIDENHAIN, REPOST
 from .apt import read_apt_report
 from .clcsv import read_clcsv_report
 from .gcode import read_gcode_report
@@ -30,20 +32,37 @@ EXTENSIONS = MappingProxyType({
     "gcode": (".nc", ".ngc", ".gcode", ".gc", ".tap", ".mpf", ".cnc", ".iso"),
 })
 
+#: The formats, as the command line's ``--format`` offers them
+#: (:data:`precontour.defaults.TOOLPATH_FORMATS`, which must list the same).
 FORMATS = tuple(EXTENSIONS)
+
+#: Extensions of programs in a language precontour does not read, and the language.
+FOREIGN_EXTENSIONS = MappingProxyType({".h": HEIDENHAIN})
 
 __all__ = ["read_toolpath", "read_toolpath_report", "toolpath_format", "EXTENSIONS", "FORMATS"]
 
 
-def toolpath_format(path: str | Path) -> str:
-    """Format name (``"clcsv"``, ``"apt"`` or ``"gcode"``) of a file, from its extension."""
+def toolpath_format(path: str | Path, format: str | None = None) -> str:
+    """Format name (``"clcsv"``, ``"apt"`` or ``"gcode"``) of a file: ``format`` when given
+    (checked), else from the file's extension."""
+    if format is not None:
+        if format not in EXTENSIONS:
+            raise InputError(f"unknown tool-path format {format!r}; use one of "
+                             f"{', '.join(FORMATS)}", field="format")
+        return format
     suffix = Path(path).suffix.lower()
     for name, suffixes in EXTENSIONS.items():
         if suffix in suffixes:
             return name
+    if suffix in FOREIGN_EXTENSIONS:
+        raise ToolPathError(f"{suffix!r} is the extension of {FOREIGN_EXTENSIONS[suffix]} "
+                            f"programs, which precontour does not read; {REPOST} (if the file is "
+                            "G-code after all: --format gcode, or format='gcode')",
+                            source=str(path))
     known = ", ".join(s for suffixes in EXTENSIONS.values() for s in suffixes)
     raise ToolPathError(f"unknown tool-path extension {suffix or '(none)'!r}; supported: "
-                        f"{known} (or pass format= one of {', '.join(FORMATS)})",
+                        f"{known} (or give the format, --format or format=, one of "
+                        f"{', '.join(FORMATS)})",
                         source=str(path))
 
 
@@ -82,11 +101,7 @@ def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "m
                          format: str | None = None, tcp: bool = False) -> ReadReport:
     """Like :func:`read_toolpath`, returning the :class:`ReadReport` (line of each point,
     rapid flags, duplicates dropped, skipped statements, G-code axis positions)."""
-    if format is None:
-        format = toolpath_format(path)
-    elif format not in EXTENSIONS:
-        raise InputError(f"unknown tool-path format {format!r}; use one of "
-                         f"{', '.join(FORMATS)}", field="format")
+    format = toolpath_format(path, format)
     if format == "clcsv":
         return read_clcsv_report(path, feed_units=feed_units)
     if format == "apt":
