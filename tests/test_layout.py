@@ -13,7 +13,7 @@ STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "too
           "tables",
           "prediction", "compensation", "simulation", "planning", "options", "identification",
           "workflow",
-          "reports", "system", "cli")
+          "reports", "system", "cnc", "cli")
 
 
 def _module_name(path: Path) -> str:

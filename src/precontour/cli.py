@@ -460,6 +460,37 @@ def _add_run_command(commands) -> None:
                      help="also write the compensated commands with the reference and the "
                           "source line of each sample: t,X,Y,Z,A,C,Px,Py,Pz,Oi,Oj,Ok,line")
     _add_report_option(run, help="also write figures, the table and an index.html to DIR")
+    timing = run.add_argument_group(
+        "at the controller's own timing (docs/controller.md)",
+        "With --timing, run compensates for the timing the controller itself produced for the "
+        "program as written and gives the program back, every line as written, with only the "
+        "end points of its straight feed moves corrected (G-code programs).")
+    timing.add_argument("--timing", default=None, metavar="TRACE",
+                        help="the controller's servo trace of the uncompensated program "
+                             "(commanded positions per servo period and the program line: a "
+                             "servo log in any format identify reads, angles in degrees), or "
+                             "linuxcnc:DIR to record it by running the program on the LinuxCNC "
+                             "configuration DIR (precontour linuxcnc-config) headless")
+    timing.add_argument("--learn-from", default=None, metavar="TRACE",
+                        help="with --timing: learn the corrections from this trace of an "
+                             "earlier run of the program on the machine (commanded and actual "
+                             "positions; uncompensated or compensated), instead of predicting "
+                             "them: the measured contour error at each point of the program, "
+                             "through the identified model's inverse")
+    timing.add_argument("--repeat", default=None, metavar="TRACE",
+                        help="with --learn-from: a second trace of the uncompensated program "
+                             "(with actual positions): a line counts as worse only beyond the "
+                             "two uncompensated runs' difference on it")
+    timing.add_argument("--timing-out", type=Path, default=None, metavar="TRACE.csv",
+                        help="with --timing linuxcnc:DIR: also write the recorded trace (t, "
+                             "X..C, X_act..C_act with simulated drives, line; mm, rad)")
+    timing.add_argument("--trace-columns", default=None, metavar="NAMES",
+                        help="comma-separated names of a text trace's columns in order "
+                             "(as identify --columns: t, n, X..C, X_act..C_act, line; empty "
+                             "to skip)")
+    timing.add_argument("--trace-angles", choices=("deg", "rad"), default=None,
+                        help="unit of the rotary axes in the traces (default: rad for "
+                             ".csv/.npz/.parquet tables, deg for controllers' text traces)")
     run.set_defaults(run=run_run)
 
 
@@ -488,8 +519,30 @@ def _add_linuxcnc_config_command(commands) -> None:
                     "display. An existing folder is replaced only if it holds such a "
                     "configuration.")
     _add_machine_options(lcnc, required=True, controller=None)
+    lcnc.add_argument("--drives", choices=("looped", "simulated"), default="looped",
+                      help="looped: each joint's command looped back as its feedback (LinuxCNC's "
+                           "sims: timing only); simulated: each joint closed through LinuxCNC's "
+                           "pid (the --controller's gains) around a drive plant of the machine "
+                           "file's J, B, ka, kt, rg and Coulomb friction, its actual positions "
+                           "recorded (default looped)")
+    lcnc.add_argument("--controller", default=None,
+                      help="with --drives simulated: the pid controller of the machine file "
+                           "whose gains LinuxCNC's pid runs (a tf controller: its base)")
     _add_output(lcnc, metavar="DIR", help="configuration folder")
     lcnc.set_defaults(run=run_linuxcnc_config)
+    record = commands.add_parser(
+        "linuxcnc-record", help="run a program on a LinuxCNC configuration and record it",
+        description="Run a G-code program headless on a configuration written by "
+                    "linuxcnc-config (LinuxCNC 2.9 installed here) and write every servo "
+                    "period as a servo log: t, the joints' commands, with simulated drives "
+                    "their actual positions, and the program line (mm, rad): what identify, "
+                    "run --timing and run --learn-from read.")
+    record.add_argument("program", type=Path, help="G-code program")
+    record.add_argument("--config", type=Path, required=True, metavar="DIR",
+                        help="LinuxCNC configuration folder (precontour linuxcnc-config)")
+    _add_machine_options(record, required=True, controller=None)
+    _add_output(record, help="servo log (.csv/.npz/.parquet)")
+    record.set_defaults(run=run_linuxcnc_record)
 
 
 def _machines_epilog() -> str:
@@ -1036,6 +1089,11 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_run(args: argparse.Namespace) -> int:
+    if args.timing is not None:
+        return run_at_timing_command(args)
+    if args.learn_from is not None or args.repeat is not None or args.timing_out is not None:
+        raise InputError("--learn-from, --repeat and --timing-out need --timing (the "
+                         "controller's trace of the uncompensated program)", field="--timing")
     from .options import LimitOptions, ToleranceOptions
     from .planning import ContourTolerance
     from .reports.progress import ProgressLine
@@ -1082,6 +1140,26 @@ def run_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_at_timing_command(args: argparse.Namespace) -> int:
+    from .cnc.run import run_at_timing
+    from .system import load_servo
+
+    start = time.perf_counter()
+    if args.stream is not None or args.report is not None or args.tolerance is not None:
+        raise InputError("--stream, --report and --tolerance are not made with --timing (the "
+                         "program's own blocks at the controller's timing)", field="--timing")
+    servo = load_servo(args.machine, args.controller)
+    columns = args.trace_columns.split(",") if args.trace_columns else None
+    result = run_at_timing(servo, args.program, args.timing, args.output,
+                           learn_from=args.learn_from, repeat=args.repeat,
+                           commands_output=args.commands, tcp=args.tcp,
+                           trace_output=args.timing_out, columns=columns,
+                           angles=args.trace_angles)
+    print(result.table())
+    print(f"wrote {args.output} in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def run_machines(args: argparse.Namespace) -> int:
     if args.template is not None:
         from .machine.template import machine_template
@@ -1123,10 +1201,26 @@ def run_linuxcnc_config(args: argparse.Namespace) -> int:
 
     check_config_folder(args.output)
     machine = load_machine(args.machine)
-    files = write_linuxcnc_config(machine, args.output)
+    if args.drives == "simulated" and args.controller is None:
+        raise InputError("--drives simulated needs --controller (a pid controller of the "
+                         "machine file)", field="--controller")
+    files = write_linuxcnc_config(machine, args.output, drives=args.drives,
+                                  controller=args.controller)
     print(f"LinuxCNC configuration for {machine.name} ({len(files)} files) in {args.output}: "
           f"linuxcnc {args.output / 'machine.ini'} runs G-code; halrun -I -f "
           f"{args.output / 'stream.hal'} then halstreamer -c 0 FILE runs a --stream file")
+    return 0
+
+
+def run_linuxcnc_record(args: argparse.Namespace) -> int:
+    from .cnc.run import record_on_linuxcnc
+
+    start = time.perf_counter()
+    trace = record_on_linuxcnc(args.config, args.program, args.machine, args.output)
+    kind = "commands and actual positions" if trace.actual is not None else "commands"
+    print(f"recorded {args.program} on {args.config}: {trace.n_samples} servo periods "
+          f"({trace.n_samples * trace.period:.2f} s), {kind}; wrote {args.output} in "
+          f"{time.perf_counter() - start:.1f} s")
     return 0
 
 

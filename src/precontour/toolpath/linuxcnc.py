@@ -42,6 +42,7 @@ from ..errors import InputError, OutputError
 from ..machine.drives import LINEAR_AXES
 from ..machine.kinematics import (XYZABTableDualRotary, XYZACTrunnion, XYZBCHeadHead,
                                   XYZBCTrunnion)
+from .linuxcnc_drives import FERROR, MIN_FERROR
 
 #: The file that marks a folder as a configuration this module wrote (it may be replaced).
 MARKER = "machine.ini"
@@ -110,6 +111,8 @@ class LinuxcncConfig:
     joints: tuple[JointLimits, ...]
     files: Mapping[str, str]
     executable: tuple[str, ...] = ("headless.py",)
+    drives: str = "looped"
+    controller: str | None = None
 
 
 def joint_limits(machine) -> tuple[JointLimits, ...]:
@@ -222,9 +225,28 @@ def _tdr_kins(kin) -> tuple[str, str, bool, list[str]]:
     return module, module, True, lines
 
 
-def linuxcnc_config(machine) -> LinuxcncConfig:
+def linuxcnc_config(machine, *, drives: str = "looped",
+                    controller: str | None = None) -> LinuxcncConfig:
     """The configuration of ``machine`` (a :class:`~precontour.machine.machine_file.Machine`)
-    as text; :func:`write_linuxcnc_config` writes it."""
+    as text; :func:`write_linuxcnc_config` writes it.
+
+    ``drives``: ``"looped"``, each joint's command looped back as its feedback (LinuxCNC's
+    sims: timing only), or ``"simulated"``, each joint closed through LinuxCNC's ``pid``
+    with the gains of ``controller`` (a ``pid`` controller of the machine file, or a ``tf``
+    with a ``base``) around a plant of the machine file's drive
+    (:mod:`~precontour.toolpath.linuxcnc_drives`); the recorder then also samples the
+    actual positions."""
+    from .linuxcnc_drives import DRIVES, joint_plants
+
+    if drives not in DRIVES:
+        raise ValueError(f"drives must be one of {DRIVES}, got {drives!r}")
+    plants = None
+    if drives == "simulated":
+        if controller is None:
+            raise InputError("simulated drives need a controller (--controller NAME: a pid "
+                             "controller of the machine file)",
+                             source=machine.source or machine.name, field="controller")
+        plants = joint_plants(machine, controller)
     joints = joint_limits(machine)
     period_ns = int(round(machine.servo_period * 1e9))
     if not 1e4 <= period_ns <= 1e8:
@@ -240,11 +262,12 @@ def linuxcnc_config(machine) -> LinuxcncConfig:
     tool_length = getattr(machine.kinematics, "tool_offset", 0.0)
     files = {
         "machine.ini": _ini(machine, joints, period_ns, loadrt, tcp, display="axis",
-                            halfiles=("machine.hal",)),
+                            halfiles=("machine.hal",), simulated=plants is not None),
         "headless.ini": _ini(machine, joints, period_ns, loadrt, tcp,
-                             display="./headless.py", halfiles=("machine.hal", "record.hal")),
-        "machine.hal": _machine_hal(kins_lines, len(joints)),
-        "record.hal": _record_hal(machine, period_ns),
+                             display="./headless.py", halfiles=("machine.hal", "record.hal"),
+                             simulated=plants is not None),
+        "machine.hal": _machine_hal(kins_lines, len(joints), plants),
+        "record.hal": _record_hal(machine, period_ns, simulated=plants is not None),
         "stream.hal": _stream_hal(machine, period_ns),
         "headless.py": HEADLESS_PY,
         "tool.tbl": f"T1 P1 Z{_num(tool_length)} D0 ;tool {_num(tool_length)} mm long\n",
@@ -253,18 +276,23 @@ def linuxcnc_config(machine) -> LinuxcncConfig:
         files["remap/428remap.ngc"] = _switch_sub("428", 1, "tool centre point kinematics")
         files["remap/429remap.ngc"] = _switch_sub("429", 0, "identity kinematics")
     return LinuxcncConfig(machine=machine.name, kinematics=module, tcp=tcp,
-                          servo_period_ns=period_ns, joints=joints, files=files)
+                          servo_period_ns=period_ns, joints=joints, files=files, drives=drives,
+                          controller=controller)
 
 
-def _ini(machine, joints, period_ns, loadrt, tcp, *, display, halfiles) -> str:
+def _ini(machine, joints, period_ns, loadrt, tcp, *, display, halfiles,
+         simulated: bool = False) -> str:
     # X Y Z (5axiskins's W joint is no feed axis of the planner's Cartesian speed cap)
     linear = [j for j in joints[:5] if not j.rotary]
     rotary = [j for j in joints if j.rotary]
     coordinates = " ".join(j.letter for j in joints)
     lines = [HEADER,
              f"# machine: {machine.name} ({machine.source or 'built-in'})",
-             "# Limits are the machine file's (A, B, C in degrees); the joints are looped back",
-             "# (machine.hal): replace those nets by the machine's position loops.",
+             "# Limits are the machine file's (A, B, C in degrees); "
+             + ("each joint is closed through pid around a simulated drive (machine.hal)."
+                if simulated else "the joints are looped back"),
+             "# " + ("Replace the simulated drives by the machine's own." if simulated
+                     else "(machine.hal): replace those nets by the machine's position loops."),
              "", "[EMC]", "VERSION = 1.1", f"MACHINE = precontour {machine.name}", "DEBUG = 0",
              "", "[DISPLAY]", f"DISPLAY = {display}", "CYCLE_TIME = 0.100",
              "POSITION_OFFSET = RELATIVE", "POSITION_FEEDBACK = COMMANDED",
@@ -298,6 +326,8 @@ def _ini(machine, joints, period_ns, loadrt, tcp, *, display, halfiles) -> str:
         lines += ["", f"[JOINT_{n}]", f"TYPE = {'ANGULAR' if j.rotary else 'LINEAR'}"]
         lines += _limit_lines(j)
         lines += [f"HOME = {_num(j.home)}", "HOME_SEARCH_VEL = 0", "HOME_SEQUENCE = 0"]
+        if simulated and n < 5:
+            lines += [f"FERROR = {_num(FERROR)}", f"MIN_FERROR = {_num(MIN_FERROR)}"]
     return "\n".join(lines) + "\n"
 
 
@@ -311,17 +341,28 @@ def _limit_lines(j: JointLimits) -> list[str]:
                     f"MAX_ACCELERATION = {_num(j.acceleration)}"]
 
 
-def _machine_hal(kins_lines: list[str], n_joints: int = 5) -> str:
-    lines = ["# precontour linuxcnc-config: motion, kinematics and the joints looped back",
+def _machine_hal(kins_lines: list[str], n_joints: int = 5, plants=None) -> str:
+    from .linuxcnc_drives import drives_hal
+
+    looped = range(n_joints) if plants is None else range(5, n_joints)
+    # a sum2 the kinematics lines load (5axiskins's pivot) loads with the drives' sum2s
+    extra_sum2 = ()
+    if plants is not None:
+        extra_sum2 = tuple(line.split("names=")[1] for line in kins_lines
+                           if line.startswith("loadrt sum2 names="))
+        kins_lines = [line for line in kins_lines if not line.startswith("loadrt sum2 ")]
+    lines = ["# precontour linuxcnc-config: motion, kinematics and the joints "
+             + ("looped back" if plants is None else "closed through simulated drives"),
              "loadrt [KINS]KINEMATICS",
              "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD "
              "num_joints=[KINS]JOINTS",
              "addf motion-command-handler servo-thread",
              "addf motion-controller servo-thread",
-             "# commanded position = feedback (a simulated machine): replace by the position",
-             "# loops, e.g. net j0-cmd joint.0.motor-pos-cmd => pid.0.command",
+             *(drives_hal(plants, extra_sum2) if plants is not None else
+               ["# commanded position = feedback (a simulated machine): replace by the "
+                "position", "# loops, e.g. net j0-cmd joint.0.motor-pos-cmd => pid.0.command"]),
              *[f"net j{n}-pos joint.{n}.motor-pos-cmd => joint.{n}.motor-pos-fb"
-               for n in range(n_joints)],
+               for n in looped],
              "net estop-loop iocontrol.0.user-enable-out => iocontrol.0.emc-enable-in",
              "net tool-prep-loop iocontrol.0.tool-prepare => iocontrol.0.tool-prepared",
              "net tool-change-loop iocontrol.0.tool-change => iocontrol.0.tool-changed",
@@ -333,16 +374,29 @@ def _depth(period_ns: int) -> int:
     return int(math.ceil(RECORD_BUFFER_SECONDS * 1e9 / period_ns))
 
 
-def _record_hal(machine, period_ns: int) -> str:
+def record_columns(simulated: bool) -> tuple[str, ...]:
+    """The columns ``record.hal`` samples: :data:`RECORD_COLUMNS`, then with simulated
+    drives the joints' actual positions (``a0``..``a4``)."""
+    from .linuxcnc_drives import ACTUAL_COLUMNS
+
+    return RECORD_COLUMNS + (ACTUAL_COLUMNS if simulated else ())
+
+
+def _record_hal(machine, period_ns: int, simulated: bool = False) -> str:
+    columns = record_columns(simulated)
+    command = "cmd" if simulated else "pos"
     lines = ["# precontour linuxcnc-config: every servo period recorded (headless.ini)",
-             f"# columns after halsampler -t's sample number: {' '.join(RECORD_COLUMNS)}",
-             f"loadrt sampler depth={_depth(period_ns)} cfg=ffffffffffss",
+             f"# columns after halsampler -t's sample number: {' '.join(columns)}",
+             f"loadrt sampler depth={_depth(period_ns)} "
+             f"cfg=ffffffffffss{'fffff' if simulated else ''}",
              "addf sampler.0 servo-thread",  # after motion-controller: this period's output
-             *[f"net j{n}-pos => sampler.0.pin.{n}" for n in range(5)],
+             *[f"net j{n}-{command} => sampler.0.pin.{n}" for n in range(5)],
              *[f"net {letter.lower()}-world axis.{letter.lower()}.pos-cmd => "
                f"sampler.0.pin.{5 + n}" for n, letter in enumerate(machine.axis_names)],
              "net program-line motion.program-line => sampler.0.pin.10",
              "net motion-type motion.motion-type => sampler.0.pin.11"]
+    if simulated:
+        lines += [f"net j{n}-pos => sampler.0.pin.{12 + n}" for n in range(5)]
     return "\n".join(lines) + "\n"
 
 
@@ -462,7 +516,8 @@ print(f"headless: ran {program}", file=sys.stderr)
 '''
 
 
-def write_linuxcnc_config(machine, folder: str | os.PathLike) -> list[Path]:
+def write_linuxcnc_config(machine, folder: str | os.PathLike, *, drives: str = "looped",
+                          controller: str | None = None) -> list[Path]:
     """Write :func:`linuxcnc_config` of ``machine`` into ``folder`` as one set: into a
     temporary folder beside it, then renamed. An existing ``folder`` is replaced only when
     it is empty or holds a configuration written here (its ``machine.ini`` starts with
@@ -470,7 +525,7 @@ def write_linuxcnc_config(machine, folder: str | os.PathLike) -> list[Path]:
     written."""
     folder = Path(folder)
     check_config_folder(folder)
-    config = linuxcnc_config(machine)
+    config = linuxcnc_config(machine, drives=drives, controller=controller)
     parent = folder.parent if str(folder.parent) else Path(".")
     staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=parent))
     old = None

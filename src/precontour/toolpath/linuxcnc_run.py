@@ -142,6 +142,16 @@ def _servo_period(config: Path) -> float:
     raise ValueError(f"{config / 'machine.ini'}: no SERVO_PERIOD")
 
 
+def _recorded_columns(config: Path) -> tuple[str, ...]:
+    """The columns ``record.hal`` of ``config`` samples, from its ``# columns`` line (a
+    configuration with simulated drives records the actual positions too)."""
+    marker = "# columns after halsampler -t's sample number:"
+    for line in (config / "record.hal").read_text().splitlines():
+        if line.startswith(marker):
+            return tuple(line[len(marker):].split())
+    return RECORD_COLUMNS
+
+
 def read_record(path: str | os.PathLike, columns: tuple[str, ...], ts: float,
                 log: str = "") -> Recording:
     """A ``halsampler -t`` file: the sample number, then ``columns``, space-separated with a
@@ -199,7 +209,8 @@ def run_gcode(config: str | os.PathLike, program: str | os.PathLike, *,
         if done.returncode != 0 or "headless: ran" not in log:
             raise LinuxcncFailed(f"LinuxCNC failed (exit {done.returncode}): "
                                  + " | ".join(log.strip().splitlines()[-8:]))
-        return read_record(work / "record.txt", RECORD_COLUMNS, _servo_period(config), log)
+        return read_record(work / "record.txt", _recorded_columns(config),
+                           _servo_period(config), log)
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
