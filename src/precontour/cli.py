@@ -316,7 +316,10 @@ def _add_identify_command(commands) -> None:
                     "machine plus a controller of type tf.")
     ident.add_argument("log", type=Path,
                        help="servo log: .csv/.npz/.parquet with t,X..C,X_act..C_act[,I_X..I_C], "
-                            "LinuxCNC halsampler output, or a halscope log")
+                            "LinuxCNC halsampler output, a halscope log, a Heidenhain TNCscope "
+                            ".sco file, a Sinumerik Operate trace (.xml), a TwinCAT Scope View "
+                            "CSV export, or any CSV whose columns --columns or --column-map "
+                            "names")
     _add_machine_options(ident, controller=None,
                          machine_help="base machine: built-in name or machine TOML file")
     _add_output(ident, help="identified machine file (.toml)")
@@ -326,18 +329,28 @@ def _add_identify_command(commands) -> None:
                        help="model order per axis: auto (default) or a number")
     _add_report_option(ident, help="also write figures (Bode, residuals) and index.html to DIR")
     ident.add_argument("--format", choices=LOG_FORMATS, default=None,
-                       help="log format (default: by suffix; text files: halscope if the first "
-                            "line says 'Sampling period is', else halsampler)")
-    ident.add_argument("--columns", metavar="NAMES",
-                       help="comma-separated names of the log's columns in order (halsampler, or "
-                            "halscope channels): t, n (sample number), X..C, X_act..C_act, "
-                            "I_X..I_C; empty to skip")
+                       help="log format (default: by suffix and first line: .sco TNCscope, "
+                            ".xml Sinumerik, a first line 'Name' TwinCAT, .csv/.npz/.parquet "
+                            "table (a .csv with --columns or --column-map: csv); other text: "
+                            "halscope if the first line says 'Sampling period is', else "
+                            "halsampler)")
+    names = ident.add_mutually_exclusive_group()
+    names.add_argument("--columns", metavar="NAMES",
+                       help="comma-separated names of the log's columns in order (halsampler, "
+                            "csv, or the channels of halscope and the traces): t, n (sample "
+                            "number), X..C, X_act..C_act, I_X..I_C, line (program line); empty "
+                            "to skip")
+    names.add_argument("--column-map", metavar="MAP",
+                       help="the columns by the names in the file, as HEADER=NAME pairs "
+                            "separated by commas, e.g. 's soll/X=X,s ist/X=X_act' (csv, "
+                            "halscope and the traces; other channels are not read; default for "
+                            "the traces: recognised by their names)")
     ident.add_argument("--period", type=_positive_float, metavar="S",
                        help="sample period in s for logs without a t column (default: the "
                             "machine's servo period; halscope logs give theirs)")
     ident.add_argument("--angles", choices=("rad", "deg"), default="rad",
-                       help="unit of the rotary axes in the log (default rad; LinuxCNC uses "
-                            "deg)")
+                       help="unit of the rotary axes in the log (default rad; LinuxCNC and "
+                            "the controllers' traces use deg)")
     ident.add_argument("--base-controller", metavar="NAME",
                        help="base controller kept for axes the log cannot identify (default: "
                             "the machine's first linear controller)")
@@ -977,7 +990,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def run_identify(args: argparse.Namespace) -> int:
-    from .identification import identify, read_servo_log
+    from .identification import identify, parse_column_map, read_servo_log
     from .machine.machine_file import load_machine, machine_data
     from .tables import write_text
 
@@ -992,6 +1005,8 @@ def run_identify(args: argparse.Namespace) -> int:
                        what="identification report")
     data, _ = machine_data(args.machine)
     columns = None if args.columns is None else args.columns.split(",")
+    if args.column_map is not None:
+        columns = parse_column_map(args.column_map)
     log = read_servo_log(args.log, fmt=args.format, columns=columns,
                          period=args.period, default_period=base.servo_period,
                          angle_scale=math.pi / 180 if args.angles == "deg" else 1.0,

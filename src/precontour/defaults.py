@@ -100,8 +100,11 @@ GCODE_TOL_ROTARY = 1e-5
 EXPORT_FORMATS: tuple[str, ...] = ("gcode", "halstreamer", "csv", "npz", "parquet")
 
 # -- identification -----------------------------------------------------------------------
-#: Servo log formats ``precontour identify`` reads.
-LOG_FORMATS: tuple[str, ...] = ("table", "halsampler", "halscope")
+#: Servo log formats ``precontour identify`` reads: the library's table, LinuxCNC's
+#: halsampler and halscope, the traces of Heidenhain TNCscope, Siemens Sinumerik Operate and
+#: Beckhoff TwinCAT Scope View, and any CSV through a column map.
+LOG_FORMATS: tuple[str, ...] = ("table", "halsampler", "halscope", "sco", "sinumerik-xml",
+                                "twincat-csv", "csv")
 #: Default half travel of the excitation, mm (X, Y, Z) and rad (A, C).
 DEFAULT_TRAVEL_LINEAR = 25.0
 DEFAULT_TRAVEL_ROTARY = 0.5

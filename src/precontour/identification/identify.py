@@ -132,6 +132,10 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
         if axis not in log.command:
             notes[axis] = f"axis {letter[axis]}: not in the log; kept the base model ({ctrl.name})"
             continue
+        if axis not in log.actual:
+            notes[axis] = (f"axis {letter[axis]}: the log has its command but not its actual "
+                           f"position; kept the base model ({ctrl.name})")
+            continue
         X, x = log.command[axis], log.actual[axis]
         try:
             # The base loop's slowest pole sets how long friction transients are left out.
