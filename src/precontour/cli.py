@@ -494,6 +494,14 @@ def _add_run_command(commands) -> None:
                         help="with --learn-from: a second trace of the uncompensated program "
                              "(with actual positions): a line counts as worse only beyond the "
                              "two uncompensated runs' difference on it")
+    timing.add_argument("--overlay", type=Path, default=None, metavar="OUT.txt",
+                        help="with --timing, on LinuxCNC: write the correction as a servo-rate "
+                             "overlay instead of into the blocks: this halstreamer file (the "
+                             "compensated minus the recorded commands per joint, mm and "
+                             "degrees, from the first move), and as -o the program as written "
+                             "with M62 P0 before its first move, which starts it (a "
+                             "configuration of linuxcnc-config --drives simulated adds it "
+                             "between motion and the position loops)")
     timing.add_argument("--timing-out", type=Path, default=None, metavar="TRACE.csv",
                         help="with --timing linuxcnc:DIR: also write the recorded trace (t, "
                              "X..C, X_act..C_act with simulated drives, line; mm, rad)")
@@ -553,6 +561,10 @@ def _add_linuxcnc_config_command(commands) -> None:
     record.add_argument("program", type=Path, help="G-code program")
     record.add_argument("--config", type=Path, required=True, metavar="DIR",
                         help="LinuxCNC configuration folder (precontour linuxcnc-config)")
+    record.add_argument("--overlay", type=Path, default=None, metavar="FILE",
+                        help="a run --overlay file streamed beside the program (its M62 P0 "
+                             "starts it); the log's commands are then motion's plus the "
+                             "overlay")
     _add_machine_options(record, required=True, controller=None)
     _add_output(record, help="servo log (.csv/.npz/.parquet)")
     record.set_defaults(run=run_linuxcnc_record)
@@ -1106,9 +1118,11 @@ def run_export(args: argparse.Namespace) -> int:
 def run_run(args: argparse.Namespace) -> int:
     if args.timing is not None:
         return run_at_timing_command(args)
-    if args.learn_from is not None or args.repeat is not None or args.timing_out is not None:
-        raise InputError("--learn-from, --repeat and --timing-out need --timing (the "
-                         "controller's trace of the uncompensated program)", field="--timing")
+    if any(value is not None for value in (args.learn_from, args.repeat, args.timing_out,
+                                            args.overlay)):
+        raise InputError("--learn-from, --repeat, --overlay and --timing-out need --timing "
+                         "(the controller's trace of the uncompensated program)",
+                         field="--timing")
     from .options import LimitOptions, ToleranceOptions
     from .planning import ContourTolerance
     from .reports.progress import ProgressLine
@@ -1169,7 +1183,7 @@ def run_at_timing_command(args: argparse.Namespace) -> int:
                            learn_from=args.learn_from, repeat=args.repeat,
                            commands_output=args.commands, tcp=args.tcp,
                            trace_output=args.timing_out, columns=columns,
-                           angles=args.trace_angles)
+                           angles=args.trace_angles, overlay_output=args.overlay)
     print(result.table())
     print(f"wrote {args.output} in {time.perf_counter() - start:.1f} s")
     return 0
@@ -1231,7 +1245,8 @@ def run_linuxcnc_record(args: argparse.Namespace) -> int:
     from .cnc.run import record_on_linuxcnc
 
     start = time.perf_counter()
-    trace = record_on_linuxcnc(args.config, args.program, args.machine, args.output)
+    trace = record_on_linuxcnc(args.config, args.program, args.machine, args.output,
+                               overlay=args.overlay)
     kind = "commands and actual positions" if trace.actual is not None else "commands"
     print(f"recorded {args.program} on {args.config}: {trace.n_samples} servo periods "
           f"({trace.n_samples * trace.period:.2f} s), {kind}; wrote {args.output} in "

@@ -160,3 +160,69 @@ def test_cli(tmp_path, capsys):
     assert err.startswith("precontour: error: ") and "busy" in err and err.count("\n") == 1
     assert main(["linuxcnc-config", "--machine", "nosuch", "-o", str(tmp_path / "c")]) == 2
     assert not (tmp_path / "c").exists()
+
+
+def _setp(hal: str) -> dict[str, float]:
+    """The ``setp NAME VALUE`` lines of a HAL file."""
+    values = {}
+    for line in hal.splitlines():
+        words = line.split()
+        if len(words) >= 3 and words[0] == "setp":
+            values[words[1]] = float(words[2])
+    return values
+
+
+@pytest.mark.parametrize("name", ["zhang2013", "linuxcnc-xyzbc-trt", "linuxcnc-bridgemill"])
+def test_simulated_drives_run_the_controllers_gains_around_the_drives(name):
+    """pid per joint unit (degrees on rotary joints) and the plant of spec section 2 from
+    the machine file, checked against the machine file's numbers directly."""
+    machine = load_machine(name)
+    config = linuxcnc_config(machine, drives="simulated", controller="pid-high")
+    hal = config.files["machine.hal"]
+    setp = _setp(hal)
+    gains = machine.controller("pid-high").axes
+    for n, (letter, drive, pid) in enumerate(zip(machine.axis_names, machine.drives, gains)):
+        unit = math.pi / 180 if letter in "ABC" else 1.0
+        name_ = letter.lower()
+        assert setp[f"pid.{name_}.Pgain"] == pytest.approx(pid.kp * unit, rel=1e-11)
+        assert setp[f"pid.{name_}.Igain"] == pytest.approx(pid.ki * unit, rel=1e-11)
+        assert setp[f"pid.{name_}.Dgain"] == pytest.approx(pid.kd * unit, rel=1e-11)
+        assert setp[f"drive-{name_}-net.gain0"] == pytest.approx(drive.ka * drive.kt, rel=1e-11)
+        assert setp[f"drive-{name_}-net.gain1"] == pytest.approx(-drive.B, rel=1e-11)
+        assert setp[f"drive-{name_}-accel.gain0"] == pytest.approx(1 / drive.J, rel=1e-11)
+        assert setp[f"drive-{name_}-rate.gain"] == pytest.approx(drive.rg / unit, rel=1e-11)
+        assert setp[f"drive-{name_}-friction.max"] == pytest.approx(drive.friction.Tc_pos)
+        assert setp[f"drive-{name_}-friction.min"] == pytest.approx(drive.friction.Tc_neg)
+        # motion -> overlay offset -> pid; plant -> pid and, less the offset, -> motion
+        assert f"net j{n}-cmd joint.{n}.motor-pos-cmd => overlay-{name_}.in" in hal
+        assert f"net j{n}-overlaid overlay-{name_}.out => pid.{name_}.command" in hal
+        assert f"net j{n}-overlay streamer.0.pin.{n} => overlay-{name_}.offset" in hal
+        assert (f"net j{n}-pos drive-{name_}-pos.out => pid.{name_}.feedback "
+                f"overlay-{name_}.fb-in") in hal
+        assert f"net j{n}-fb overlay-{name_}.fb-out => joint.{n}.motor-pos-fb" in hal
+        assert f"net j{n}-pos joint.{n}.motor-pos-cmd => joint.{n}.motor-pos-fb" not in hal
+    # every component loads once (a second loadrt of one would fail at start-up)
+    loaded = [line.split()[1] for line in hal.splitlines() if line.startswith("loadrt ")]
+    assert len(loaded) == len(set(loaded))
+    ini = _ini(config.files["headless.ini"])
+    assert float(ini["JOINT_0"]["FERROR"]) > 0 and float(ini["JOINT_0"]["MIN_FERROR"]) > 0
+    assert "net overlay-enable motion.digital-out-00 => streamer.0.enable" in hal
+    record = config.files["record.hal"]
+    assert "j0 j1 j2 j3 j4 line a0 a1 a2 a3 a4 o0 o1 o2 o3 o4" in record
+    assert "net j0-pos => sampler.0.pin.6" in record
+    assert "net j4-overlay => sampler.0.pin.15" in record
+
+
+def test_simulated_drives_need_a_pid_controller(tmp_path, capsys):
+    machine = load_machine("zhang2013")
+    with pytest.raises(InputError, match="pid"):
+        linuxcnc_config(machine, drives="simulated", controller="p-pi-high")
+    with pytest.raises(InputError, match="controller"):
+        linuxcnc_config(machine, drives="simulated")
+    assert main(["linuxcnc-config", "--machine", "zhang2013", "--drives", "simulated",
+                 "-o", str(tmp_path / "cfg")]) != 0
+    assert "--controller" in capsys.readouterr().err
+    # the looped-back configuration is as before: no pid, no FERROR
+    looped = linuxcnc_config(machine)
+    assert "pid" not in looped.files["machine.hal"].replace("pid.0.command", "")
+    assert "FERROR" not in looped.files["machine.ini"]

@@ -51,7 +51,8 @@ LEARNING_CUTOFF = 60.0
 #: Order of that low pass (applied forwards and backwards: twice the order, no phase).
 LEARNING_ORDER = 2
 #: Time after the last block's start that still counts as the program (its end and the
-#: settling at the final rest), s.
+#: settling at the final rest), and after the first block's start that the tables leave out
+#: (the approach's settling), s.
 SETTLE_TIME = 0.3
 
 
@@ -77,9 +78,27 @@ class Measured:
     line: np.ndarray
     commands: np.ndarray
     actual: np.ndarray
+    period: float = 1e-3
+
+    @property
+    def cutting(self) -> slice:
+        """The samples of ``errors`` that the tables report: from :data:`SETTLE_TIME` after
+        the first move's start (the approach rapid still settles there, and the first blocks,
+        shorter than :data:`~precontour.cnc.blocks.MIN_BLOCK`, keep their end points) to the
+        end of the commanded motion."""
+        moving = np.flatnonzero(np.any(np.diff(self.commands, axis=0) != 0, axis=1))
+        end = int(moving[-1]) + 2 if moving.size else self.commands.shape[0]
+        start = min(int(round(SETTLE_TIME / self.period)), max(end - 1, 0))
+        return slice(start, end)
 
     def summary(self):
-        return self.errors.summary()
+        """Max and mean contour errors over :attr:`cutting` (um, mrad)."""
+        part = self.cutting
+        return ContourErrors(tip=self.errors.tip[part],
+                             orientation=self.errors.orientation[part],
+                             tip_parameter=self.errors.tip_parameter[part],
+                             orientation_parameter=self.errors.orientation_parameter[part]
+                             ).summary()
 
 
 def align(reference: ControllerTrace, trace: ControllerTrace, move_lines) -> np.ndarray:
@@ -134,7 +153,7 @@ def measure_trace(servo, reference: ControllerTrace, trace: ControllerTrace, mov
     P, O = servo.kinematics.forward(actual)
     errors = path.errors(P, O, reference.t[span] - reference.t[0])
     return Measured(errors=errors, span=span, line=reference.line[span], commands=commands,
-                    actual=actual)
+                    actual=actual, period=reference.period)
 
 
 def _reference_path(servo, reference: ControllerTrace) -> ReferencePath:

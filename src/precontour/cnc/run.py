@@ -21,6 +21,7 @@ instead of from the correction that made them worse.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,7 +35,8 @@ from .blocks import CorrectedProgram, block_starts, correct_program
 from .learn import Measured, learned_commands, measure_trace
 from .trace import ControllerTrace, read_controller_trace, trace_from_recording
 
-__all__ = ["LINUXCNC_PREFIX", "TimingRun", "block_lateness", "compensate_at_timing",
+__all__ = ["LINUXCNC_PREFIX", "OVERLAY_START", "TimingRun", "block_lateness",
+           "compensate_at_timing", "overlay_offsets", "overlay_program",
            "line_maxima",
            "record_on_linuxcnc", "run_at_timing", "timing_trace", "worse_lines",
            "write_trace"]
@@ -42,6 +44,20 @@ __all__ = ["LINUXCNC_PREFIX", "TimingRun", "block_lateness", "compensate_at_timi
 #: A timing given as ``linuxcnc:DIR`` is recorded by running the program on the LinuxCNC
 #: configuration DIR headless.
 LINUXCNC_PREFIX = "linuxcnc:"
+#: The words ``run --overlay`` puts at the start of the program's first move: the digital
+#: output that starts the overlay streamer, synchronised with the start of that move.
+OVERLAY_START = "M62 P0 (precontour: the overlay starts with this move)"
+#: Servo periods by which the overlay's first sample follows the start of the first move as
+#: the timing trace records it: -1, measured on LinuxCNC 2.9 (the recorded overlay matched
+#: the file to 0.3 um shifted one period earlier, and to 4.9 um unshifted: the streamer
+#: emits in the period before the one whose program line the recorder sees change).
+OVERLAY_LEAD = -1
+#: Seconds over which an overlay file returns to 0 after the program (and ends there).
+OVERLAY_TAIL = 0.5
+#: Seconds over which the overlay fades in from the first move's start: the approach rapid
+#: (not compensated) may leave the axes tens of micrometres behind there, and a step of the
+#: offset would kick the loops.
+OVERLAY_RAMP = 0.1
 
 
 @dataclass(frozen=True)
@@ -92,7 +108,9 @@ class TimingRun:
                 "commands: " + ("predicted by the model (" + "the controller's timing kept)"
                                 if self.method == "predicted" else
                                 f"learned from {self.learned_source}"),
-                f"{'measured on the machine':32s} {'tip max um':>10s} {'tip mean um':>11s} "
+                "measured on the machine, from 0.3 s after the first move to the end of the "
+                "commanded motion:",
+                f"{'':32s} {'tip max um':>10s} {'tip mean um':>11s} "
                 f"{'ori max mrad':>12s} {'ori mean mrad':>13s}"]
         for label, measured in (("uncompensated (timing trace)", self.uncompensated),
                                 ("learned from", self.learned_from)):
@@ -143,7 +161,7 @@ def worse_lines(run: Measured, baseline: Measured,
     again = line_maxima(repeat) if repeat is not None else {}
     worse = []
     for line, (tip, ori) in ours.items():
-        if line not in base:
+        if line <= 0 or line not in base:    # 0: after the program's end
             continue
         b_tip, b_ori = base[line]
         r_tip, r_ori = again.get(line, (b_tip, b_ori))
@@ -232,9 +250,44 @@ def _predicted(servo, timing: ControllerTrace, method: str) -> np.ndarray:
     return commands
 
 
+def overlay_offsets(timing: ControllerTrace, commands: np.ndarray, move_lines) -> np.ndarray:
+    """The overlay file's rows: ``commands`` minus the timing trace's commands, per joint in
+    LinuxCNC's units (mm, degrees), one per servo period from the first move's start (the
+    program's ``M62 P0``), then :data:`OVERLAY_TAIL` of zeros."""
+    starts = block_starts(timing.line, np.asarray(move_lines))
+    if not np.any(starts >= 0):
+        raise InputError("the timing trace never executes one of the program's moves: the "
+                         "overlay cannot be matched to it", source=timing.source, field="line")
+    first = int(starts[starts >= 0][0]) + OVERLAY_LEAD
+    degrees = np.array([1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi])
+    offsets = (np.asarray(commands) - timing.command)[first:] * degrees
+    # faded in (C1) over OVERLAY_RAMP: the overlay starts from 0 whatever the approach left
+    ramp = min(int(round(OVERLAY_RAMP / timing.period)), offsets.shape[0])
+    if ramp > 1:
+        x = np.linspace(0.0, 1.0, ramp)
+        offsets[:ramp] *= (x * x * (3.0 - 2.0 * x))[:, None]
+    # and back to 0 over the tail
+    count = int(round(OVERLAY_TAIL / timing.period))
+    x = np.linspace(1.0, 0.0, count)
+    tail = offsets[-1] * (x * x * (3.0 - 2.0 * x))[:, None]
+    return np.vstack([offsets, tail])
+
+
+def overlay_program(text: str, first_line: int) -> str:
+    """``text`` with :data:`OVERLAY_START` on line ``first_line`` (1-based: the program's
+    first move), after its block number if it has one: the line numbers stay the program's,
+    so that traces of the overlaid program match its blocks."""
+    lines = text.splitlines(keepends=True)
+    raw = lines[first_line - 1]
+    number = re.match(r"\s*(?:/\s*)?[Nn]\s*\d+\s*", raw)
+    at = number.end() if number else len(raw) - len(raw.lstrip())
+    lines[first_line - 1] = raw[:at] + OVERLAY_START + " " + raw[at:]
+    return "".join(lines)
+
+
 def timing_trace(source: str | os.PathLike | ControllerTrace, program, machine, *,
                  fmt: str | None = None, columns=None, angles: str | None = None,
-                 timeout: float = 3600.0) -> ControllerTrace:
+                 timeout: float = 3600.0, overlay=None) -> ControllerTrace:
     """The controller's trace of ``program``: ``source`` as it is (a trace), read from a file
     (:func:`~.trace.read_controller_trace`), or, for ``linuxcnc:DIR``, recorded by running
     ``program`` on the LinuxCNC configuration DIR headless."""
@@ -249,7 +302,7 @@ def timing_trace(source: str | os.PathLike | ControllerTrace, program, machine, 
             raise InputError("not a configuration of precontour linuxcnc-config (no "
                              "headless.ini)", source=str(config))
         try:
-            recording = run_gcode(config, program, timeout=timeout)
+            recording = run_gcode(config, program, timeout=timeout, overlay=overlay)
         except (LinuxcncUnavailable, LinuxcncFailed) as exc:
             raise InputError(f"LinuxCNC could not record the program: {exc}",
                              source=str(config)) from None
@@ -260,16 +313,17 @@ def timing_trace(source: str | os.PathLike | ControllerTrace, program, machine, 
 
 
 def record_on_linuxcnc(config: str | os.PathLike, program: str | os.PathLike, machine,
-                       output: str | os.PathLike) -> ControllerTrace:
+                       output: str | os.PathLike, *, overlay=None) -> ControllerTrace:
     """Run ``program`` on the LinuxCNC configuration ``config`` headless and write its trace
     (:func:`write_trace`) to ``output``; ``machine``: a name, file or Machine (the axes'
-    letters)."""
+    letters); ``overlay``: a ``run --overlay`` file to stream beside the program (its
+    commands are then the motion controller's plus the overlay)."""
     from ..machine import Machine, load_machine
 
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
-    outputs = OutputSet([program])
+    outputs = OutputSet([program, overlay])
     outputs.file(output)
-    trace = timing_trace(f"{LINUXCNC_PREFIX}{config}", program, machine)
+    trace = timing_trace(f"{LINUXCNC_PREFIX}{config}", program, machine, overlay=overlay)
     with outputs:
         write_columns(output, _trace_columns(trace, tuple(machine.axis_names)))
     return trace
@@ -297,12 +351,16 @@ def _trace_columns(trace: ControllerTrace, axis_names=("X", "Y", "Z", "A", "C"))
 def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.PathLike, *,
                   learn_from=None, repeat=None, commands_output=None, tcp: bool = False,
                   method: str = "contour", trace_output=None, fmt: str | None = None,
-                  columns=None, angles: str | None = None) -> TimingRun:
+                  columns=None, angles: str | None = None,
+                  overlay_output=None) -> TimingRun:
     """:func:`compensate_at_timing` with the traces given as files (or ``linuxcnc:DIR``
     for the timing) and the outputs written as one set: the corrected program ``output``,
     optionally the commands (``commands_output``, a table at the timing's samples) and the
-    timing trace recorded (``trace_output``, for ``linuxcnc:DIR``). Every output is checked
-    before anything is computed."""
+    timing trace recorded (``trace_output``, for ``linuxcnc:DIR``). With ``overlay_output``
+    the correction goes to LinuxCNC as a servo-rate overlay instead of into the blocks: that
+    file (``halstreamer`` rows, one per servo period from the first move) and, as ``output``,
+    the program as written with :data:`OVERLAY_START` on its first move's line. Every output
+    is checked before anything is computed."""
     from ..tables import write_columns
 
     program = Path(program)
@@ -315,6 +373,8 @@ def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.Pa
         outputs.file(commands_output)
     if trace_output is not None:
         outputs.file(trace_output)
+    if overlay_output is not None:
+        outputs.file(overlay_output)
     machine = servo.machine
     trace = timing_trace(timing, program, machine, fmt=fmt, columns=columns, angles=angles)
     learned = (timing_trace(learn_from, program, machine, fmt=fmt, columns=columns,
@@ -324,7 +384,22 @@ def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.Pa
     result = compensate_at_timing(servo, program, trace, learn_from=learned, repeat=again,
                                   method=method, tcp=tcp)
     with outputs:
-        atomic_write(output, result.program.text.encode())
+        if overlay_output is None:
+            atomic_write(output, result.program.text.encode())
+        else:
+            from ..toolpath import read_program
+            from ..toolpath.writers import ProgramInfo, halstreamer_lines
+
+            moves = read_program(program, machine, tcp=tcp).programmed
+            rows = overlay_offsets(trace, result.commands, moves.line)
+            # halstreamer_lines writes q in mm and rad: the rows are mm and degrees
+            rows[:, 3:] = np.radians(rows[:, 3:])
+            info = ProgramInfo(machine=machine.name, method="overlay: compensated minus "
+                               "the controller's commands, from the program's first move")
+            text = "".join(halstreamer_lines(rows, trace.period, info=info))
+            atomic_write(overlay_output, text.encode())
+            atomic_write(output, overlay_program(program.read_text(),
+                                                 int(moves.line[0])).encode())
         if commands_output is not None:
             names = tuple(machine.axis_names)
             write_columns(commands_output, {"t": trace.t - trace.t[0],

@@ -114,15 +114,20 @@ class ControllerTrace:
 
 def trace_from_recording(recording, source: str = "") -> ControllerTrace:
     """The trace of a LinuxCNC recording (:class:`~precontour.toolpath.linuxcnc_run.
-    Recording`): the joints' commands (mm, degrees) in rad, the actual positions when the
-    configuration simulates drives (``a0``..``a4``), the planner's program line."""
+    Recording`): the joints' commands (mm, degrees) in rad, plus the overlay where the
+    configuration has one (``o0``..``o4``: the position loops' command is the motion
+    controller's plus the overlay), the actual positions when it simulates drives
+    (``a0``..``a4``), the planner's program line."""
     scale = 1.0 / _degrees_per_unit()
     columns = recording.columns
+    command = np.asarray(recording.joints, dtype=float)
+    if all(f"o{i}" in columns for i in range(5)):
+        command = command + np.column_stack([columns[f"o{i}"] for i in range(5)])
     actual = None
     if all(f"a{i}" in columns for i in range(5)):
         actual = np.column_stack([columns[f"a{i}"] for i in range(5)]) * scale
-    return ControllerTrace(t=recording.t, command=np.asarray(recording.joints) * scale,
-                           actual=actual, line=columns.get("line"), source=source)
+    return ControllerTrace(t=recording.t, command=command * scale, actual=actual,
+                           line=columns.get("line"), source=source)
 
 
 def read_controller_trace(path: str | Path, machine, *, fmt: str | None = None,

@@ -266,7 +266,7 @@ def linuxcnc_config(machine, *, drives: str = "looped",
         "headless.ini": _ini(machine, joints, period_ns, loadrt, tcp,
                              display="./headless.py", halfiles=("machine.hal", "record.hal"),
                              simulated=plants is not None),
-        "machine.hal": _machine_hal(kins_lines, len(joints), plants),
+        "machine.hal": _machine_hal(kins_lines, len(joints), plants, period_ns),
         "record.hal": _record_hal(machine, period_ns, simulated=plants is not None),
         "stream.hal": _stream_hal(machine, period_ns),
         "headless.py": HEADLESS_PY,
@@ -341,7 +341,8 @@ def _limit_lines(j: JointLimits) -> list[str]:
                     f"MAX_ACCELERATION = {_num(j.acceleration)}"]
 
 
-def _machine_hal(kins_lines: list[str], n_joints: int = 5, plants=None) -> str:
+def _machine_hal(kins_lines: list[str], n_joints: int = 5, plants=None,
+                 period_ns: int = 1_000_000) -> str:
     from .linuxcnc_drives import drives_hal
 
     looped = range(n_joints) if plants is None else range(5, n_joints)
@@ -358,7 +359,7 @@ def _machine_hal(kins_lines: list[str], n_joints: int = 5, plants=None) -> str:
              "num_joints=[KINS]JOINTS",
              "addf motion-command-handler servo-thread",
              "addf motion-controller servo-thread",
-             *(drives_hal(plants, extra_sum2) if plants is not None else
+             *(drives_hal(plants, extra_sum2, period_ns) if plants is not None else
                ["# commanded position = feedback (a simulated machine): replace by the "
                 "position", "# loops, e.g. net j0-cmd joint.0.motor-pos-cmd => pid.0.command"]),
              *[f"net j{n}-pos joint.{n}.motor-pos-cmd => joint.{n}.motor-pos-fb"
@@ -375,28 +376,36 @@ def _depth(period_ns: int) -> int:
 
 
 def record_columns(simulated: bool) -> tuple[str, ...]:
-    """The columns ``record.hal`` samples: :data:`RECORD_COLUMNS`, then with simulated
-    drives the joints' actual positions (``a0``..``a4``)."""
-    from .linuxcnc_drives import ACTUAL_COLUMNS
+    """The columns ``record.hal`` samples: :data:`RECORD_COLUMNS`, or with simulated drives
+    the joint commands, the program line, the joints' actual positions (``a0``..``a4``) and
+    the overlay (``o0``..``o4``): a sampler has at most 20 pins, so the planner's Cartesian
+    position and the motion type are left out there."""
+    from .linuxcnc_drives import ACTUAL_COLUMNS, OVERLAY_COLUMNS
 
-    return RECORD_COLUMNS + (ACTUAL_COLUMNS if simulated else ())
+    if not simulated:
+        return RECORD_COLUMNS
+    return RECORD_COLUMNS[:5] + ("line",) + ACTUAL_COLUMNS + OVERLAY_COLUMNS
 
 
 def _record_hal(machine, period_ns: int, simulated: bool = False) -> str:
     columns = record_columns(simulated)
-    command = "cmd" if simulated else "pos"
     lines = ["# precontour linuxcnc-config: every servo period recorded (headless.ini)",
-             f"# columns after halsampler -t's sample number: {' '.join(columns)}",
-             f"loadrt sampler depth={_depth(period_ns)} "
-             f"cfg=ffffffffffss{'fffff' if simulated else ''}",
-             "addf sampler.0 servo-thread",  # after motion-controller: this period's output
-             *[f"net j{n}-{command} => sampler.0.pin.{n}" for n in range(5)],
-             *[f"net {letter.lower()}-world axis.{letter.lower()}.pos-cmd => "
-               f"sampler.0.pin.{5 + n}" for n, letter in enumerate(machine.axis_names)],
-             "net program-line motion.program-line => sampler.0.pin.10",
-             "net motion-type motion.motion-type => sampler.0.pin.11"]
-    if simulated:
-        lines += [f"net j{n}-pos => sampler.0.pin.{12 + n}" for n in range(5)]
+             f"# columns after halsampler -t's sample number: {' '.join(columns)}"]
+    if not simulated:
+        lines += [f"loadrt sampler depth={_depth(period_ns)} cfg=ffffffffffss",
+                  "addf sampler.0 servo-thread",  # after motion-controller: this period's
+                  *[f"net j{n}-pos => sampler.0.pin.{n}" for n in range(5)],
+                  *[f"net {letter.lower()}-world axis.{letter.lower()}.pos-cmd => "
+                    f"sampler.0.pin.{5 + n}" for n, letter in enumerate(machine.axis_names)],
+                  "net program-line motion.program-line => sampler.0.pin.10",
+                  "net motion-type motion.motion-type => sampler.0.pin.11"]
+        return "\n".join(lines) + "\n"
+    lines += [f"loadrt sampler depth={_depth(period_ns)} cfg=fffffsffffffffff",
+              "addf sampler.0 servo-thread",
+              *[f"net j{n}-cmd => sampler.0.pin.{n}" for n in range(5)],
+              "net program-line motion.program-line => sampler.0.pin.5",
+              *[f"net j{n}-pos => sampler.0.pin.{6 + n}" for n in range(5)],
+              *[f"net j{n}-overlay => sampler.0.pin.{11 + n}" for n in range(5)]]
     return "\n".join(lines) + "\n"
 
 
@@ -483,9 +492,13 @@ def wait(condition, what, limit=30.0):
     raise SystemExit(f"headless: timed out waiting for {what}")
 
 
-sampler = None
+sampler = streamer = None
+overlay = os.environ.get("PRECONTOUR_OVERLAY")
 if record:
     sampler = subprocess.Popen(["halsampler", "-c", "0", "-t", record])
+if overlay:
+    # the overlay's samples wait in the streamer's FIFO until the program's M62 starts it
+    streamer = subprocess.Popen(["halstreamer", "-c", "0", overlay])
 try:
     command.state(linuxcnc.STATE_ESTOP_RESET)
     command.state(linuxcnc.STATE_ON)
@@ -507,9 +520,11 @@ try:
     time.sleep(0.2)  # the last samples reach the recorder
     check_errors()
 finally:
-    if sampler is not None:
-        sampler.terminate()
-        sampler.wait()
+    for process in (streamer, sampler):
+        if process is not None and process.poll() is None:
+            process.terminate()
+        if process is not None:
+            process.wait()
 if failed:
     raise SystemExit("headless: " + "; ".join(failed))
 print(f"headless: ran {program}", file=sys.stderr)

@@ -113,15 +113,37 @@ def _num(value: float) -> str:
     return f"{value:.12g}"
 
 
-def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = ()) -> list[str]:
+#: Columns the recorder samples for the overlay: each joint's overlay offset (``o0``..``o4``,
+#: mm or degrees), added by ``offset`` components between the motion controller and the pid.
+OVERLAY_COLUMNS: tuple[str, ...] = ("o0", "o1", "o2", "o3", "o4")
+#: The motion controller's digital output that starts the overlay: the program turns it on
+#: with ``M62 P0`` before its first move (synchronised with the start of that move).
+OVERLAY_OUTPUT = 0
+#: Seconds of overlay samples the overlay streamer's FIFO holds.
+OVERLAY_BUFFER_SECONDS = 2.0
+
+
+def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = (),
+               period_ns: int = 1_000_000) -> list[str]:
     """HAL lines that load, wire and schedule the ``pid`` and plant of every joint (after
     ``motion-controller`` in the servo thread). ``extra_sum2``: names of ``sum2`` instances
     the rest of the configuration needs (a component loads once, with all its names)."""
     names = [p.letter.lower() for p in plants]
     sum2 = list(extra_sum2) + [f"drive-{n}-{part}" for n in names for part in ("net", "accel")]
+    depth = int(math.ceil(OVERLAY_BUFFER_SECONDS * 1e9 / period_ns))
     lines = ["# simulated drives (linuxcnc-config --drives simulated): pid.N closes each joint",
              "# around J w' = ka kt u - B w - Tf(w), x' = rg w (stock components; see",
              "# precontour.toolpath.linuxcnc_drives)",
+             "# the overlay: a servo-rate correction per joint (run --overlay's file, fed by",
+             "# halstreamer) added between motion and the pid by offset components (motion",
+             f"# sees the feedback less it: its following-error check stays on); M62 P{OVERLAY_OUTPUT}",
+             "# in the program starts it, synchronised with the next move",
+             # LinuxCNC 2.9's streamer takes no names=: instance 0 (stream.hal's own runs in a
+             # halrun session of its own)
+             f"loadrt streamer depth={depth} cfg={'f' * len(plants)}",
+             "loadrt offset names=" + ",".join(f"overlay-{n}" for n in names),
+             "addf streamer.0 servo-thread",
+             f"net overlay-enable motion.digital-out-{OVERLAY_OUTPUT:02d} => streamer.0.enable",
              f"loadrt pid names={','.join(f'pid.{n}' for n in names)}",
              f"loadrt sum2 names={','.join(sum2)}",
              "loadrt scale names=" + ",".join(f"drive-{n}-{part}" for n in names
@@ -134,6 +156,7 @@ def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = ())
         d = f"drive-{n}"
         lines += [
             f"# joint {joint} ({p.letter})",
+            f"addf overlay-{n}.update-output servo-thread",
             f"addf pid.{n}.do-pid-calcs servo-thread",
             *[f"addf {d}-{part} servo-thread"
               for part in ("net", "fgain", "friction", "accel", "speed", "rate", "pos")],
@@ -148,7 +171,9 @@ def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = ())
             f"setp {d}-accel.gain0 {_num(1.0 / p.inertia)}",
             f"setp {d}-accel.gain1 {_num(-1.0 / p.inertia)}",
             f"setp {d}-rate.gain {_num(p.rate)}",
-            f"net j{joint}-cmd joint.{joint}.motor-pos-cmd => pid.{n}.command",
+            f"net j{joint}-cmd joint.{joint}.motor-pos-cmd => overlay-{n}.in",
+            f"net j{joint}-overlay streamer.0.pin.{joint} => overlay-{n}.offset",
+            f"net j{joint}-overlaid overlay-{n}.out => pid.{n}.command",
             f"net j{joint}-enable joint.{joint}.amp-enable-out => pid.{n}.enable",
             f"net j{joint}-volts pid.{n}.output => {d}-net.in0",
             f"net j{joint}-speed {d}-speed.out => {d}-net.in1 {d}-fgain.in {d}-rate.in",
@@ -157,6 +182,8 @@ def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = ())
             f"net j{joint}-net {d}-net.out => {d}-accel.in0",
             f"net j{joint}-accel {d}-accel.out => {d}-speed.in",
             f"net j{joint}-rate {d}-rate.out => {d}-pos.in",
-            f"net j{joint}-pos {d}-pos.out => pid.{n}.feedback joint.{joint}.motor-pos-fb",
+            f"net j{joint}-pos {d}-pos.out => pid.{n}.feedback overlay-{n}.fb-in",
+            f"net j{joint}-fb overlay-{n}.fb-out => joint.{joint}.motor-pos-fb",
         ]
+    lines += [f"addf overlay-{n}.update-feedback servo-thread" for n in names]
     return lines

@@ -181,10 +181,14 @@ def read_record(path: str | os.PathLike, columns: tuple[str, ...], ts: float,
 
 
 def run_gcode(config: str | os.PathLike, program: str | os.PathLike, *,
-              user: str | None = None, timeout: float = 600.0) -> Recording:
+              user: str | None = None, timeout: float = 600.0,
+              overlay: str | os.PathLike | None = None) -> Recording:
     """Run ``program`` on the configuration ``config`` (a folder of
     :func:`~precontour.toolpath.linuxcnc.write_linuxcnc_config`) and record every servo
     period from before homing to after the program's end.
+
+    ``overlay``: a file of ``run --overlay`` (a configuration with simulated drives), fed by
+    ``halstreamer`` into the overlay streamer, which the program's ``M62 P0`` starts.
 
     Raises :class:`LinuxcncUnavailable` when LinuxCNC cannot run here and
     :class:`LinuxcncFailed` when the program did not run to its end (the message carries
@@ -194,11 +198,16 @@ def run_gcode(config: str | os.PathLike, program: str | os.PathLike, *,
         raise LinuxcncUnavailable(why)
     config = Path(config)
     name = linuxcnc_user(user)
-    work = _workspace(config, name, {"program.ngc": Path(program)})
+    files = {"program.ngc": Path(program)}
+    if overlay is not None:
+        files["overlay.txt"] = Path(overlay)
+    work = _workspace(config, name, files)
     try:
         env = {"PRECONTOUR_PROGRAM": str(work / "program.ngc"),
                "PRECONTOUR_RECORD": str(work / "record.txt"),
                "PRECONTOUR_TIMEOUT": f"{timeout:g}", "HOME": str(work)}
+        if overlay is not None:
+            env["PRECONTOUR_OVERLAY"] = str(work / "overlay.txt")
         argv = _as_user(name, env, ["linuxcnc", "-r", str(work / "config" / "headless.ini")])
         try:
             done = subprocess.run(argv, cwd=work, capture_output=True, text=True,
