@@ -499,7 +499,7 @@ def _add_run_command(commands) -> None:
                              "overlay instead of into the blocks: this halstreamer file (the "
                              "compensated minus the recorded commands per joint, mm and "
                              "degrees, from the first move), and as -o the program as written "
-                             "with M62 P0 before its first move, which starts it (a "
+                             "with M62 P0 on its first move's line, which starts it (a "
                              "configuration of linuxcnc-config --drives simulated adds it "
                              "between motion and the position loops)")
     timing.add_argument("--timing-out", type=Path, default=None, metavar="TRACE.csv",

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from precontour.cnc import ControllerTrace
-from precontour.cnc.run import (OVERLAY_RAMP, OVERLAY_START, OVERLAY_TAIL, overlay_offsets,
-                                overlay_program)
+from precontour.cnc.run import (OVERLAY_LEAD, OVERLAY_RAMP, OVERLAY_START, OVERLAY_TAIL,
+                                overlay_offsets, overlay_program)
 
 
 def test_the_first_move_starts_the_overlay_and_the_line_numbers_stay():
@@ -32,9 +32,10 @@ def test_overlay_rows_start_at_the_first_move_in_joint_units():
     rows = overlay_offsets(trace, command + correction, np.arange(4, 10))
     tail = int(round(OVERLAY_TAIL / 1e-3))
     ramp = int(round(OVERLAY_RAMP / 1e-3))
-    assert rows.shape == (n - 120 + tail, 5)
-    assert rows[0, 0] == 0.0                              # faded in from the first move
+    first = 120 + OVERLAY_LEAD                            # the first move's start
+    assert rows.shape == (n - first + tail, 5)
+    assert rows[0, 0] == 0.0                              # faded in from there
     assert np.all(np.diff(rows[:ramp, 0]) >= 0)
-    assert np.allclose(rows[ramp:n - 120, 3], 1e-3 * np.arange(120 + ramp, n))  # degrees
-    assert np.allclose(rows[ramp:n - 120, 0], 1e-3 * np.arange(120 + ramp, n))  # mm
-    assert rows[n - 120, 0] == rows[n - 121, 0] and rows[-1].tolist() == [0.0] * 5
+    assert np.allclose(rows[ramp:n - first, 3], 1e-3 * np.arange(first + ramp, n))  # degrees
+    assert np.allclose(rows[ramp:n - first, 0], 1e-3 * np.arange(first + ramp, n))  # mm
+    assert rows[n - first, 0] == rows[n - first - 1, 0] and rows[-1].tolist() == [0.0] * 5
