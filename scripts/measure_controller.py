@@ -70,21 +70,25 @@ def impeller_head(lines: int, out: Path) -> Path:
 
 
 def bench_case(name: str, machine_name: str, program: Path, work: Path,
-               iterations: int, cl_data: Path | None = None) -> list[list]:
+               iterations: int, cl_data: Path | None = None,
+               identify: bool = True) -> list[list]:
     machine = load_machine(machine_name)
     letters = "".join(machine.axis_names)
     config = work / "cfg"
     started = time.perf_counter()
     _quiet(["linuxcnc-config", "--machine", machine_name, "--drives", "simulated",
             "--controller", "pid-high", "-o", str(config)])
-    _quiet(["excite", "--machine", machine_name, "-o", str(work / "exc.ngc")])
-    _quiet(["linuxcnc-record", str(work / "exc.ngc"), "--config", str(config), "--machine",
-            machine_name, "-o", str(work / "exc.csv")])
-    _quiet(["identify", str(work / "exc.csv"), "--machine", machine_name,
-            "-o", str(work / "ident.toml")])
+    if identify:
+        _quiet(["excite", "--machine", machine_name, "-o", str(work / "exc.ngc")])
+        _quiet(["linuxcnc-record", str(work / "exc.ngc"), "--config", str(config),
+                "--machine", machine_name, "-o", str(work / "exc.csv")])
+        _quiet(["identify", str(work / "exc.csv"), "--machine", machine_name,
+                "-o", str(work / "ident.toml")])
+        run = ["run", str(program), "--machine", str(work / "ident.toml"), "--controller",
+               "identified"]
+    else:   # the machine file's model of the gains LinuxCNC's pid runs
+        run = ["run", str(program), "--machine", machine_name, "--controller", "pid-high"]
     moves = read_program(program, machine).programmed
-    run = ["run", str(program), "--machine", str(work / "ident.toml"), "--controller",
-           "identified"]
 
     def record(prog: Path, log: str):
         _quiet(["linuxcnc-record", str(prog), "--config", str(config), "--machine",
@@ -143,7 +147,7 @@ def bench_case(name: str, machine_name: str, program: Path, work: Path,
     return table
 
 
-def page(tables: list[list], args) -> str:
+def page(tables: list[list], notes: list[str]) -> str:
     header = ["program", "commands", "tip max µm", "tip mean µm", "mean of uncompensated",
               "ori max mrad", "ori mean mrad", "blocks: largest offset, periods",
               "blocks > 1 period off"]
@@ -155,15 +159,18 @@ def page(tables: list[list], args) -> str:
         "",
         "LinuxCNC 2.9 headless, every joint closed through LinuxCNC's `pid` (the machine "
         "file's `pid-high` gains) around a simulated drive with Coulomb friction "
-        "(`precontour linuxcnc-config --drives simulated`), 1 ms servo thread; the drives "
-        "identified with `identify` from an `excite` log recorded on it. Errors from the actual "
-        "positions LinuxCNC recorded, measured by a k-d tree closest-point search of the "
-        "tests' own (tests/linuxcnc/closed_loop_measure.py) against the uncompensated run's "
-        "commanded path, from 0.3 s after the first move to the end of the commanded motion. "
-        "Block offsets: servo periods each block started off the uncompensated run's "
-        "(LinuxCNC's `motion.program-line`). How: [On a real controller](controller.md).",
+        "(`precontour linuxcnc-config --drives simulated`), 1 ms servo thread. Errors from the "
+        "actual positions LinuxCNC recorded, measured by a k-d tree closest-point search of "
+        "the tests' own (tests/linuxcnc/closed_loop_measure.py) against the uncompensated "
+        "run's commanded path, from 0.3 s after the first move to the end of the commanded "
+        "motion. Block offsets: servo periods each block started off the uncompensated run's "
+        "(LinuxCNC's `motion.program-line`). Learning: each `--learn-from` iteration learns "
+        "from the run of the row above it (`--repeat` the second uncompensated run). How: "
+        "[On a real controller](controller.md).",
         "",
         markdown_table(header, rows, "llrrrrrrr"),
+        "",
+        *notes,
         "",
     ])
 
@@ -177,7 +184,8 @@ def main_(argv=None) -> int:
     why = linuxcnc_unavailable()
     if why:
         raise SystemExit(f"needs LinuxCNC: {why}")
-    tables = []
+    tables: list[list] = []
+    notes: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         paper = tmp / "paper"
@@ -189,15 +197,25 @@ def main_(argv=None) -> int:
         path = builtin_path("paper")
         np.savetxt(cl_data, np.column_stack([path.P, path.O]), delimiter=",",
                    header="Px,Py,Pz,Oi,Oj,Ok", comments="", fmt="%.9f")
-        tables.append(bench_case("`paper` G-code (zhang2013)", "zhang2013",
+        tables.append(bench_case("`paper` G-code (zhang2013, identified)", "zhang2013",
                                  paper / "paper.ngc", paper, args.iterations, cl_data))
+        notes.append("- `paper`: the drives identified with `identify` from an `excite` log "
+                     "recorded on the loop (every loop fitted within 1.0-6.3 % of max|e|).")
+        write_page(args.out, page(tables, notes))      # each case as soon as it is measured
         impeller = tmp / "impeller"
         impeller.mkdir()
         head = impeller_head(args.impeller_lines, impeller / "impeller.ngc")
-        tables.append(bench_case(f"impeller, first {args.impeller_lines} lines "
-                                 "(linuxcnc-xyzac-trt, TCP)", "linuxcnc-xyzac-trt", head,
-                                 impeller, args.iterations))
-    write_page(args.out, page(tables, args))
+        tables.append(bench_case(f"impeller, first {args.impeller_lines} motion lines "
+                                 "(linuxcnc-xyzac-trt, TCP, machine file's model)",
+                                 "linuxcnc-xyzac-trt", head, impeller, args.iterations,
+                                 identify=False))
+        notes.append("- impeller: the machine file's `pid-high` model of the loop (the gains "
+                     "LinuxCNC's pid runs), not identified: on this machine's limits (20 mm/s, "
+                     "300 mm/s², A and C 30 deg/s) `excite` moves so slowly that Coulomb "
+                     "friction dominates its log, and `identify` fitted X, A and C to 35-55 % "
+                     "of max|e| with a pole at -0.5 rad/s (measured on 2026-12-04 from an "
+                     "11-minute recording).")
+    write_page(args.out, page(tables, notes))
     print(f"wrote {args.out}")
     return 0
 
