@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from gcodeparser import GcodeParser
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from precontour import load_machine
 from precontour.cnc import ControllerTrace, correct_program
@@ -209,6 +211,23 @@ def test_lines_with_expressions_and_short_blocks_keep_their_words(tmp_path, mach
 def test_block_starts_follow_the_line_column():
     line = np.array([0, 0, 5, 5, 6, 6, 6, 9, 9, 5])
     assert block_starts(line, np.array([5, 6, 8, 9, 5])).tolist() == [2, 4, -1, 7, 9]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 5), min_size=1, max_size=60),
+       st.lists(st.integers(0, 6), min_size=1, max_size=12))
+def test_block_starts_are_a_forward_scan(column, lines):
+    """Against the plain scan: each block's first sample at or after the previous block's."""
+    column, lines = np.array(column), np.array(lines)
+    expected, position = [], 0
+    for number in lines:
+        hits = np.flatnonzero(column[position:] == number)
+        if hits.size:
+            position += int(hits[0])
+            expected.append(position)
+        else:
+            expected.append(-1)
+    assert block_starts(column, lines).tolist() == expected
 
 
 def test_fit_is_linear_in_the_samples():

@@ -127,15 +127,29 @@ def program_coordinates(kinematics, q: np.ndarray, tcp: np.ndarray) -> np.ndarra
 
 def block_starts(line: np.ndarray, lines: np.ndarray) -> np.ndarray:
     """For each of ``lines`` (the program's moves in order), the first sample at which the
-    trace's ``line`` column reaches it (-1 where it never does): when the controller starts
-    executing the block, i.e. ends the one before."""
+    trace's ``line`` column reaches it after the previous one's (-1 where it never does):
+    when the controller starts executing the block, i.e. ends the one before. Linear in the
+    samples: the column is walked as its runs of equal values."""
+    line = np.asarray(line)
     starts = np.full(len(lines), -1, dtype=np.int64)
-    position = 0
-    for k, number in enumerate(lines):
-        hits = np.flatnonzero(line[position:] == number)
-        if hits.size:
-            starts[k] = position + hits[0]
-            position = starts[k]
+    if line.size == 0:
+        return starts
+    run_start = np.flatnonzero(np.concatenate([[True], line[1:] != line[:-1]]))
+    run_value = line[run_start]
+    # for each line number, the runs where it stands, in order
+    order = np.argsort(run_value, kind="stable")
+    values, first = np.unique(run_value[order], return_index=True)
+    where = {int(v): order[f:l] for v, f, l in zip(values, first,
+                                                    np.append(first[1:], order.size))}
+    position = 0            # the run the previous block started in
+    for k, number in enumerate(np.asarray(lines)):
+        runs = where.get(int(number))
+        if runs is None:
+            continue
+        i = np.searchsorted(runs, position)
+        if i < runs.size:
+            starts[k] = run_start[runs[i]]
+            position = runs[i]
     return starts
 
 
