@@ -46,8 +46,7 @@ from scipy import sparse
 from scipy.sparse import linalg as sparse_linalg
 
 from ..errors import InputError
-from ..machine.drives import AXES, LINEAR_AXES
-from .trace import ControllerTrace
+from .trace import ControllerTrace, degrees_per_unit
 
 __all__ = ["CorrectedProgram", "correct_program", "fit_end_points", "block_starts"]
 
@@ -111,14 +110,10 @@ class CorrectedProgram:
     needed_rms: np.ndarray
 
 
-def _scale_rotary() -> np.ndarray:
-    return np.array([1.0 if a in LINEAR_AXES else 180.0 / np.pi for a in AXES])
-
-
 def program_coordinates(kinematics, q: np.ndarray, tcp: np.ndarray) -> np.ndarray:
     """The program's coordinates of machine axes ``q`` (N, 5; mm, rad): the machine axes in mm
     and degrees, or, where ``tcp``, the tool tip (workpiece frame) and the rotary axes."""
-    w = q * _scale_rotary()
+    w = q * degrees_per_unit()
     if np.any(tcp):
         tip, _ = kinematics.forward(q[tcp])
         w[tcp, :3] = tip
@@ -193,7 +188,8 @@ def fit_end_points(w: np.ndarray, dw: np.ndarray, ends: np.ndarray, start: np.nd
     end points, ``start`` (5,) the point before the first; ``windows`` (K, 2): the samples
     [lo, hi) the controller spends around each move (increasing); ``free`` (K,): the moves
     whose end point may move (the others keep 0); ``speeds`` (5,): the axes' speed limits
-    in the same units per s. Returns the corrections and the fitted dw. Each hat is built over its own window only, so the work is linear in the samples."""
+    in the same units per s. Returns the corrections and the fitted dw. Each hat is built
+    over its own window only, so the work is linear in the samples."""
     n, count = w.shape[0], ends.shape[0]
     # progress of each move; a zero-length move's end is its predecessor's
     owner = np.arange(count)
@@ -248,11 +244,10 @@ def fit_end_points(w: np.ndarray, dw: np.ndarray, ends: np.ndarray, start: np.nd
     bend = sparse.diags([np.ones(size), -2.0 * np.ones(size - 1), np.ones(size - 2)],
                         [0, -1, -2], format="csc")
     solved = np.zeros((size, 5))
-    floor = np.max(block_time) * 1e-6 + 1e-12
+    at_speed = np.maximum(block_time, np.max(block_time) * 1e-6 + 1e-12)
     for c in range(5):
-        allowed = CHORD_CHANGE * speeds[c] * np.maximum(block_time, floor)
-        weight = samples * (needed[c] / allowed) ** 2
-        corner = samples * (needed[c] / (CORNER * speeds[c] * np.maximum(block_time, floor))) ** 2
+        weight = samples * (needed[c] / (CHORD_CHANGE * speeds[c] * at_speed)) ** 2
+        corner = samples * (needed[c] / (CORNER * speeds[c] * at_speed)) ** 2
         normal = (gram + difference.T @ sparse.diags(weight) @ difference
                   + bend.T @ sparse.diags(corner) @ bend)
         ridge = RIDGE * float(normal.diagonal().mean() or 1.0)
@@ -277,7 +272,7 @@ class _Line:
 def _scan(text: str, letters: str) -> _Line:
     code, plain, words = [], True, {}
     depth = 0
-    for i, ch in enumerate(text):
+    for ch in text:
         if ch == "(":
             depth += 1
         elif ch == ")":
@@ -398,7 +393,7 @@ def correct_program(program_path: str | Path, machine, trace: ControllerTrace,
     kept = ~free & incremental[move_lines]
     free[np.flatnonzero(kept[1:])] = False
     speeds = np.array([d.v_max if d.v_max else np.inf for d in machine.drives]) \
-        * _scale_rotary()
+        * degrees_per_unit()
     if not np.all(np.isfinite(speeds)):
         raise InputError("the axes' speed limits (v_max) are needed to keep the blocks' "
                          "timing", source=machine.source or machine.name, field="v_max")
@@ -418,7 +413,7 @@ def correct_program(program_path: str | Path, machine, trace: ControllerTrace,
             for slot, letter in enumerate(letters):
                 if letter in scan.words:
                     offsets[slot] = moves.end[k, slot] - scan.words[letter][1] * scale[slot]
-        if k in scans:
+        if free[k]:
             delta = correction[k] - previous if incremental[number] else correction[k]
             out[number - 1] = _rewrite(source_lines[number - 1], scan, delta, scale, letters,
                                        moves.end[k], offsets, bool(incremental[number]),

@@ -38,8 +38,9 @@ from ..prediction.contour import ContourErrors, ReferencePath
 from .blocks import block_starts
 from .trace import ControllerTrace
 
-__all__ = ["LEARNING_GAIN", "LEARNING_CUTOFF", "Measured", "align", "inverse_model_step",
-           "learned_commands", "measure_trace"]
+__all__ = ["LEARNING_GAIN", "LEARNING_CUTOFF", "Measured", "align",
+           "commands_learned_from", "inverse_model_step", "learned_commands", "measure_trace",
+           "reference_path"]
 
 #: Fraction of the inverse-model update taken per iteration. 1: the whole measured error,
 #: which the deterministic loop of a controller repeats from run to run (two uncompensated
@@ -71,6 +72,11 @@ class Measured:
         Program line at each of those samples (the reference's).
     commands, actual : ndarray, shape (N, 5)
         The trace's commanded and actual axes at every reference sample (mm, rad).
+    tip_closest, orientation_closest : ndarray, shape (N, 3)
+        The closest reference tip and unit orientation to each actual one (what learning
+        moves the tool to).
+    period : float
+        The reference's sample period, s.
     """
 
     errors: ContourErrors
@@ -78,6 +84,8 @@ class Measured:
     line: np.ndarray
     commands: np.ndarray
     actual: np.ndarray
+    tip_closest: np.ndarray
+    orientation_closest: np.ndarray
     period: float = 1e-3
 
     @property
@@ -141,7 +149,8 @@ def program_span(reference: ControllerTrace, move_lines) -> slice:
 def measure_trace(servo, reference: ControllerTrace, trace: ControllerTrace, move_lines,
                   path: ReferencePath | None = None) -> Measured:
     """The contour errors of ``trace``'s actual positions against ``reference``'s commanded
-    path (spec section 5), point by point of the program."""
+    path (spec section 5), point by point of the program; ``path``: that path
+    (:func:`reference_path`), when the caller has it already."""
     if trace.actual is None:
         raise InputError("the trace has no actual positions (X_act..C_act): learning and "
                          "measuring need them", source=trace.source, field="X_act")
@@ -149,14 +158,18 @@ def measure_trace(servo, reference: ControllerTrace, trace: ControllerTrace, mov
     position = align(reference, trace, move_lines)[span]
     commands = _at(trace.command, position)
     actual = _at(trace.actual, position)
-    path = path or _reference_path(servo, reference)
+    path = path or reference_path(servo, reference)
     P, O = servo.kinematics.forward(actual)
-    errors = path.errors(P, O, reference.t[span] - reference.t[0])
+    errors, P_closest, O_closest = path.errors(P, O, reference.t[span] - reference.t[0],
+                                               with_points=True)
+    O_closest = O_closest / np.linalg.norm(O_closest, axis=1, keepdims=True)
     return Measured(errors=errors, span=span, line=reference.line[span], commands=commands,
-                    actual=actual, period=reference.period)
+                    actual=actual, tip_closest=P_closest, orientation_closest=O_closest,
+                    period=reference.period)
 
 
-def _reference_path(servo, reference: ControllerTrace) -> ReferencePath:
+def reference_path(servo, reference: ControllerTrace) -> ReferencePath:
+    """The tool tip and orientation curves of ``reference``'s commands (spec section 5)."""
     return ReferencePath.from_trajectory(reference.reference(servo.kinematics))
 
 
@@ -178,20 +191,27 @@ def inverse_model_step(servo, error: np.ndarray, period: float) -> np.ndarray:
 
 
 def learned_commands(servo, reference: ControllerTrace, trace: ControllerTrace,
-                     move_lines) -> tuple[np.ndarray, Measured]:
+                     move_lines, *, path: ReferencePath | None = None
+                     ) -> tuple[np.ndarray, Measured]:
     """The next commands (N, 5; mm, rad) at ``reference``'s samples, learned from
-    ``trace`` (a run of the program with actual positions), and what was measured on it."""
-    path = _reference_path(servo, reference)
+    ``trace`` (a run of the program with actual positions), and what was measured on it;
+    ``path``: :func:`reference_path` of ``reference``, when the caller has it already."""
     measured = measure_trace(servo, reference, trace, move_lines, path)
+    return commands_learned_from(servo, reference, measured), measured
+
+
+def commands_learned_from(servo, reference: ControllerTrace,
+                          measured: Measured) -> np.ndarray:
+    """The next commands (N, 5; mm, rad) at ``reference``'s samples from a trace's
+    measurement (:func:`measure_trace`): the axes that put the tool at its closest
+    reference points minus the actual axes, through :func:`inverse_model_step`, added to
+    the commands the trace carried."""
     span = measured.span
-    P, O = servo.kinematics.forward(measured.actual)
-    _, P_closest, O_closest = path.errors(P, O, reference.t[span] - reference.t[0],
-                                          with_points=True)
-    O_closest = O_closest / np.linalg.norm(O_closest, axis=1, keepdims=True)
-    target = servo.kinematics.inverse(P_closest, O_closest, c_near=measured.actual[:, 4])
+    target = servo.kinematics.inverse(measured.tip_closest, measured.orientation_closest,
+                                      c_near=measured.actual[:, 4])
     error = np.zeros_like(reference.command)
     error[span] = target - measured.actual
     step = inverse_model_step(servo, error, reference.period)
     commands = reference.command.copy()
     commands[span] = measured.commands + step[span]
-    return commands, measured
+    return commands

@@ -32,8 +32,10 @@ from ..errors import InputError
 from ..files import OutputSet, atomic_write
 from ..tables import SUPPORTED_SUFFIXES, write_columns
 from .blocks import CorrectedProgram, block_starts, correct_program
-from .learn import Measured, learned_commands, measure_trace
-from .trace import ControllerTrace, read_controller_trace, trace_from_recording
+from .learn import (Measured, commands_learned_from, learned_commands, measure_trace,
+                    reference_path)
+from .trace import (ControllerTrace, degrees_per_unit, read_controller_trace,
+                    trace_from_recording)
 
 __all__ = ["LINUXCNC_PREFIX", "OVERLAY_START", "TimingRun", "block_lateness",
            "compensate_at_timing", "overlay_offsets", "overlay_program",
@@ -58,6 +60,8 @@ OVERLAY_TAIL = 0.5
 #: (not compensated) may leave the axes tens of micrometres behind there, and a step of the
 #: offset would kick the loops.
 OVERLAY_RAMP = 0.1
+#: Where :func:`compensate_at_timing` puts the correction.
+INTO = ("blocks", "overlay")
 
 
 @dataclass(frozen=True)
@@ -66,8 +70,8 @@ class TimingRun:
 
     Attributes
     ----------
-    program : CorrectedProgram
-        The program's own blocks with corrected end points.
+    program : CorrectedProgram or None
+        The program's own blocks with corrected end points (None for an overlay).
     commands : ndarray, shape (N, 5)
         The commands the blocks were fitted to, at the timing trace's samples (mm, rad).
     timing : ControllerTrace
@@ -81,9 +85,11 @@ class TimingRun:
     reverted_lines : tuple of int
         Program lines the trace learned from shows worse than the uncompensated run: the
         correction it carried there is not kept, they learn from the uncompensated run.
+    move_lines : ndarray of int
+        Source line of each of the program's moves.
     """
 
-    program: CorrectedProgram
+    program: CorrectedProgram | None
     commands: np.ndarray
     timing: ControllerTrace
     method: str
@@ -92,6 +98,7 @@ class TimingRun:
     reverted_lines: tuple[int, ...] = ()
     learned_source: str = ""
     late_periods: np.ndarray | None = None
+    move_lines: np.ndarray | None = None
 
     @property
     def late_blocks(self) -> int:
@@ -122,10 +129,16 @@ class TimingRun:
         if self.uncompensated is None and self.learned_from is None:
             rows.append("  (no actual positions in the traces: nothing measured)")
         p = self.program
-        share = 1.0 - float(np.sum(p.residual_rms ** 2) / max(np.sum(p.needed_rms ** 2), 1e-300))
-        rows.append(f"blocks: {p.lines.size} straight feed moves corrected, {p.fixed} kept as "
-                    f"written (expressions, several moves on a line); the blocks carry "
-                    f"{100 * max(share, 0.0):.1f} % of the correction's square over the program")
+        if p is None:
+            rows.append("overlay: the correction at the servo rate, beside the program as "
+                        "written")
+        else:
+            share = 1.0 - float(np.sum(p.residual_rms ** 2)
+                                / max(np.sum(p.needed_rms ** 2), 1e-300))
+            rows.append(f"blocks: {p.lines.size} straight feed moves corrected, {p.fixed} kept "
+                        f"as written (expressions, several moves on a line); the blocks carry "
+                        f"{100 * max(share, 0.0):.1f} % of the correction's square over the "
+                        "program")
         if self.late_periods is not None and self.late_periods.size:
             rows.append(f"timing of the learned-from run: {self.late_blocks} of "
                         f"{self.late_periods.size} blocks started more than one servo period "
@@ -175,7 +188,7 @@ def worse_lines(run: Measured, baseline: Measured,
 def compensate_at_timing(servo, program: str | os.PathLike, timing: ControllerTrace, *,
                          learn_from: ControllerTrace | None = None,
                          repeat: ControllerTrace | None = None, method: str = "contour",
-                         tcp: bool = False) -> TimingRun:
+                         tcp: bool = False, into: str = "blocks") -> TimingRun:
     """The program's own blocks compensated at the timing of ``timing`` (the controller's
     trace of the program as written).
 
@@ -184,46 +197,54 @@ def compensate_at_timing(servo, program: str | os.PathLike, timing: ControllerTr
     re-timing: the controller's timing is kept). With it, they are learned from that trace
     (a run of the program, uncompensated or compensated, with actual positions; see
     :mod:`.learn`); ``repeat``, a second uncompensated trace, sets the repeatability against
-    which a line counts as worse."""
+    which a line counts as worse. ``into``: ``"blocks"``, the program's own blocks with
+    corrected end points, or ``"overlay"``, the commands only (for :func:`overlay_offsets`;
+    no blocks are fitted)."""
     from ..toolpath import read_program
 
+    if into not in INTO:
+        raise ValueError(f"into must be one of {INTO}, got {into!r}")
     machine = servo.machine
     moves = read_program(program, machine, tcp=tcp).programmed
     if timing.line is None:
         raise InputError("the timing trace has no program line column (line): it cannot be "
                          "matched to the program's blocks", source=timing.source,
                          field="line")
-    uncompensated = None
+    uncompensated = path = None
+    if timing.actual is not None or learn_from is not None:
+        path = reference_path(servo, timing)        # built once: every measure uses it
     if timing.actual is not None:
-        uncompensated = measure_trace(servo, timing, timing, moves.line)
+        uncompensated = measure_trace(servo, timing, timing, moves.line, path)
     reverted: tuple[int, ...] = ()
     measured = None
     if learn_from is None:
         commands = _predicted(servo, timing, method)
         kind = "predicted"
     else:
-        commands, measured = learned_commands(servo, timing, learn_from, moves.line)
+        commands, measured = learned_commands(servo, timing, learn_from, moves.line,
+                                              path=path)
         kind = "learned"
         if uncompensated is not None:
-            again = (measure_trace(servo, timing, repeat, moves.line)
+            again = (measure_trace(servo, timing, repeat, moves.line, path)
                      if repeat is not None else None)
             lines = worse_lines(measured, uncompensated, again)
             if lines:
                 # the correction the trace carried there is not kept: those lines learn
                 # from the uncompensated run instead
-                restart, _ = learned_commands(servo, timing, timing, moves.line)
+                restart = commands_learned_from(servo, timing, uncompensated)
                 on = np.isin(timing.line, lines)
                 commands[on] = restart[on]
                 reverted = tuple(lines)
     late = None
     if learn_from is not None and learn_from.line is not None:
         late = block_lateness(timing, learn_from, moves.line)
-    corrected = correct_program(program, machine, timing, commands, tcp=tcp)
+    corrected = (correct_program(program, machine, timing, commands, tcp=tcp)
+                 if into == "blocks" else None)
     return TimingRun(program=corrected, commands=commands, timing=timing, method=kind,
                      uncompensated=uncompensated, learned_from=measured,
                      reverted_lines=reverted,
                      learned_source=learn_from.source if learn_from is not None else "",
-                     late_periods=late)
+                     late_periods=late, move_lines=moves.line)
 
 
 def block_lateness(timing: ControllerTrace, run: ControllerTrace, move_lines) -> np.ndarray:
@@ -259,8 +280,7 @@ def overlay_offsets(timing: ControllerTrace, commands: np.ndarray, move_lines) -
         raise InputError("the timing trace never executes one of the program's moves: the "
                          "overlay cannot be matched to it", source=timing.source, field="line")
     first = int(starts[starts >= 0][0]) + OVERLAY_LEAD
-    degrees = np.array([1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi])
-    offsets = (np.asarray(commands) - timing.command)[first:] * degrees
+    offsets = (np.asarray(commands) - timing.command)[first:] * degrees_per_unit()
     # faded in (C1) over OVERLAY_RAMP: the overlay starts from 0 whatever the approach left
     ramp = min(int(round(OVERLAY_RAMP / timing.period)), offsets.shape[0])
     if ramp > 1:
@@ -361,8 +381,6 @@ def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.Pa
     file (``halstreamer`` rows, one per servo period from the first move) and, as ``output``,
     the program as written with :data:`OVERLAY_START` on its first move's line. Every output
     is checked before anything is computed."""
-    from ..tables import write_columns
-
     program = Path(program)
     inputs = [program] + [Path(p) for p in (timing, learn_from, repeat)
                           if isinstance(p, (str, os.PathLike))
@@ -382,16 +400,15 @@ def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.Pa
     again = (timing_trace(repeat, program, machine, fmt=fmt, columns=columns, angles=angles)
              if repeat is not None else None)
     result = compensate_at_timing(servo, program, trace, learn_from=learned, repeat=again,
-                                  method=method, tcp=tcp)
+                                  method=method, tcp=tcp,
+                                  into="blocks" if overlay_output is None else "overlay")
     with outputs:
         if overlay_output is None:
             atomic_write(output, result.program.text.encode())
         else:
-            from ..toolpath import read_program
             from ..toolpath.writers import ProgramInfo, halstreamer_lines
 
-            moves = read_program(program, machine, tcp=tcp).programmed
-            rows = overlay_offsets(trace, result.commands, moves.line)
+            rows = overlay_offsets(trace, result.commands, result.move_lines)
             # halstreamer_lines writes q in mm and rad: the rows are mm and degrees
             rows[:, 3:] = np.radians(rows[:, 3:])
             info = ProgramInfo(machine=machine.name, method="overlay: compensated minus "
@@ -399,7 +416,7 @@ def run_at_timing(servo, program: str | os.PathLike, timing, output: str | os.Pa
             text = "".join(halstreamer_lines(rows, trace.period, info=info))
             atomic_write(overlay_output, text.encode())
             atomic_write(output, overlay_program(program.read_text(),
-                                                 int(moves.line[0])).encode())
+                                                 int(result.move_lines[0])).encode())
         if commands_output is not None:
             names = tuple(machine.axis_names)
             write_columns(commands_output, {"t": trace.t - trace.t[0],

@@ -27,8 +27,9 @@ from ..trajectory.sampled import Trajectory
 __all__ = ["ControllerTrace", "read_controller_trace", "trace_from_recording"]
 
 
-def _degrees_per_unit() -> np.ndarray:
-    """Per slot: 1 on the linear axes, 180/pi on the rotary ones (rad -> degrees)."""
+def degrees_per_unit() -> np.ndarray:
+    """Per q slot: 1 on the linear axes, 180/pi on the rotary ones (rad -> degrees, the
+    unit of controllers and of programs' rotary words)."""
     return np.array([1.0 if a in LINEAR_AXES else 180.0 / np.pi for a in AXES])
 
 
@@ -118,7 +119,7 @@ def trace_from_recording(recording, source: str = "") -> ControllerTrace:
     configuration has one (``o0``..``o4``: the position loops' command is the motion
     controller's plus the overlay), the actual positions when it simulates drives
     (``a0``..``a4``), the planner's program line."""
-    scale = 1.0 / _degrees_per_unit()
+    scale = 1.0 / degrees_per_unit()
     columns = recording.columns
     command = np.asarray(recording.joints, dtype=float)
     if all(f"o{i}" in columns for i in range(5)):

@@ -42,7 +42,8 @@ from ..errors import InputError, OutputError
 from ..machine.drives import LINEAR_AXES
 from ..machine.kinematics import (XYZABTableDualRotary, XYZACTrunnion, XYZBCHeadHead,
                                   XYZBCTrunnion)
-from .linuxcnc_drives import FERROR, MIN_FERROR
+from .linuxcnc_drives import (ACTUAL_COLUMNS, DRIVES, FERROR, MIN_FERROR, OVERLAY_COLUMNS,
+                              drives_hal, joint_plants)
 
 #: The file that marks a folder as a configuration this module wrote (it may be replaced).
 MARKER = "machine.ini"
@@ -236,8 +237,6 @@ def linuxcnc_config(machine, *, drives: str = "looped",
     with a ``base``) around a plant of the machine file's drive
     (:mod:`~precontour.toolpath.linuxcnc_drives`); the recorder then also samples the
     actual positions."""
-    from .linuxcnc_drives import DRIVES, joint_plants
-
     if drives not in DRIVES:
         raise ValueError(f"drives must be one of {DRIVES}, got {drives!r}")
     plants = None
@@ -343,8 +342,6 @@ def _limit_lines(j: JointLimits) -> list[str]:
 
 def _machine_hal(kins_lines: list[str], n_joints: int = 5, plants=None,
                  period_ns: int = 1_000_000) -> str:
-    from .linuxcnc_drives import drives_hal
-
     looped = range(n_joints) if plants is None else range(5, n_joints)
     # a sum2 the kinematics lines load (5axiskins's pivot) loads with the drives' sum2s
     extra_sum2 = ()
@@ -380,8 +377,6 @@ def record_columns(simulated: bool) -> tuple[str, ...]:
     the joint commands, the program line, the joints' actual positions (``a0``..``a4``) and
     the overlay (``o0``..``o4``): a sampler has at most 20 pins, so the planner's Cartesian
     position and the motion type are left out there."""
-    from .linuxcnc_drives import ACTUAL_COLUMNS, OVERLAY_COLUMNS
-
     if not simulated:
         return RECORD_COLUMNS
     return RECORD_COLUMNS[:5] + ("line",) + ACTUAL_COLUMNS + OVERLAY_COLUMNS

@@ -136,8 +136,9 @@ def drives_hal(plants: tuple[JointPlant, ...], extra_sum2: tuple[str, ...] = (),
              "# precontour.toolpath.linuxcnc_drives)",
              "# the overlay: a servo-rate correction per joint (run --overlay's file, fed by",
              "# halstreamer) added between motion and the pid by offset components (motion",
-             f"# sees the feedback less it: its following-error check stays on); M62 P{OVERLAY_OUTPUT}",
-             "# in the program starts it, synchronised with the next move",
+             "# sees the feedback less it: its following-error check stays on); "
+             f"M62 P{OVERLAY_OUTPUT} in the",
+             "# program starts it, synchronised with the next move",
              # LinuxCNC 2.9's streamer takes no names=: instance 0 (stream.hal's own runs in a
              # halrun session of its own)
              f"loadrt streamer depth={depth} cfg={'f' * len(plants)}",
