@@ -609,12 +609,16 @@ def _add_machine_options(parser: argparse.ArgumentParser, *, required: bool = Fa
 
 
 def _add_toolpath_format_option(parser: argparse.ArgumentParser) -> None:
-    """``--format`` of the commands that read a tool path (trajectory, run): the library's
-    ``read_toolpath(format=...)``."""
+    """``--format`` and ``--tool-table`` of the commands that read a tool path (trajectory,
+    run): the library's ``read_toolpath(format=..., tool_table=...)``."""
     parser.add_argument("--format", choices=TOOLPATH_FORMATS, default=None,
                         help="format of the tool path file: clcsv (CL-data CSV), apt (APT CL "
                              "data) or gcode (default: from its extension; needed for .txt "
                              "and other extensions)")
+    parser.add_argument("--tool-table", type=Path, default=None, metavar="FILE",
+                        help="G-code: tool lengths from a LinuxCNC tool table (.tbl, Z in "
+                             "mm), applied at G43 H, G43.4 H, G234 H (default: the machine "
+                             "file's [tools])")
 
 
 def _add_output(parser: argparse.ArgumentParser, *, help: str, metavar: str | None = None
@@ -816,7 +820,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
     from .tables import check_output_table, trajectory_columns, write_columns
     from .toolpath import read_program, read_toolpath, toolpath_format
     from .trajectory.builtin_paths import builtin_path
-    from .trajectory.generate import generate_trajectory, summarize
+    from .trajectory.generate import generate_trajectory, summarize, unfed_notice
     from .trajectory.program import program_trajectory
 
     start = time.perf_counter()
@@ -827,7 +831,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
     if args.builtin:
         toolpath = builtin_path(args.builtin)
     elif toolpath_format(args.toolpath, args.format) == "gcode":
-        program = read_program(args.toolpath, machine, tcp=args.tcp)
+        program = read_program(args.toolpath, machine, tcp=args.tcp,
+                               tool_table=args.tool_table)
         for notice in program.notices:
             print(f"precontour: {notice}", file=sys.stderr)
         traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
@@ -841,8 +846,16 @@ def run_trajectory(args: argparse.Namespace) -> int:
         if args.tcp:
             raise InputError("--tcp applies to G-code programs only (CL data gives the tool "
                              "tip already)", source=str(args.toolpath), field="--tcp")
+        if args.tool_table is not None:
+            raise InputError("--tool-table applies to G-code programs only (CL data gives the "
+                             "tool tip already)", source=str(args.toolpath),
+                             field="--tool-table")
         toolpath = read_toolpath(args.toolpath, machine=machine, feed_units=args.feed_units,
                                  format=args.format)
+        said = unfed_notice(toolpath, args.feed)
+        if said is not None:
+            from .errors import notice
+            notice(said)
     if toolpath is not None:
         traj = generate_trajectory(toolpath, machine, feed=args.feed, ts=ts, dwell=args.dwell,
                                    max_samples=args.max_samples)
@@ -1148,7 +1161,8 @@ def run_run(args: argparse.Namespace) -> int:
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
                              limits=LimitOptions(min_speed=args.min_speed),
-                             contour_tolerance=feed, draws=args.draws, format=args.format)
+                             contour_tolerance=feed, draws=args.draws, format=args.format,
+                             tool_table=args.tool_table)
         files = []
         # -o, --stream, --commands and the report replace the old files together, or none
         with outputs.output_set(inputs):

@@ -43,7 +43,7 @@ from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
 from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
 from .toolpath.writers import (GcodeProgram, ProgramInfo, gcode_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
-from .trajectory.generate import generate_trajectory
+from .trajectory.generate import generate_trajectory, unfed_notice
 from .trajectory.program import check_program_samples, program_trajectory
 from .trajectory.limits import AxisLimits, check_limits, check_travel
 from .trajectory.sampled import Trajectory
@@ -64,7 +64,8 @@ Progress = Callable[[int, int, str], None]
 def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False,
                             dwell: float = DEFAULT_DWELL,
                             corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
-                            max_samples: int | None = None, format: str | None = None
+                            max_samples: int | None = None, format: str | None = None,
+                            tool_table=None
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program, and its non-motion lines to keep (or None).
 
@@ -80,10 +81,11 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     ``dwell``, ``corner_tolerance`` (G-code only) and ``max_samples`` (default
     :func:`~precontour.defaults.default_max_samples`) are the planning options of the
     ``trajectory`` command. ``format``: the file's format, instead of the one its extension
-    says (:func:`~precontour.toolpath.read_toolpath`'s).
+    says (:func:`~precontour.toolpath.read_toolpath`'s); ``tool_table``: tool lengths for
+    G-code (a LinuxCNC ``.tbl`` file or a mapping; None: the machine file's ``[tools]``).
     """
     source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples,
-                              format=format)
+                              format=format, tool_table=tool_table)
     return plan_run_program(source, machine, dwell=dwell, corner_tolerance=corner_tolerance,
                             max_samples=max_samples)
 
@@ -106,14 +108,15 @@ class RunProgram:
 
 def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
                      dwell: float = DEFAULT_DWELL, max_samples: int | None = None,
-                     format: str | None = None) -> RunProgram:
+                     format: str | None = None, tool_table=None) -> RunProgram:
     """Read and check ``run``'s input, before any progress is shown: every error in the file
     comes first, and for G-code also a trajectory too long to make (the sample estimate of
     :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``).
-    ``format``: as :func:`~precontour.toolpath.read_toolpath`'s (None: from the extension)."""
+    ``format``, ``tool_table``: as :func:`~precontour.toolpath.read_toolpath`'s (None: from
+    the extension; the machine file's ``[tools]``)."""
     format = toolpath_format(path, format)
     if format == "gcode":
-        program = read_program(path, machine, tcp=tcp)
+        program = read_program(path, machine, tcp=tcp, tool_table=tool_table)
         for text in program.notices:
             notice(text)
         check_program_samples(program, machine, ts=machine.servo_period, dwell=dwell,
@@ -122,8 +125,14 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
     if tcp:
         raise InputError("--tcp applies to G-code programs only (CL data gives the tool tip "
                          "already)", source=str(path), field="--tcp")
-    return RunProgram(Path(path), toolpath=read_toolpath_report(path, machine=machine,
-                                                                format=format))
+    if tool_table is not None:
+        raise InputError("--tool-table applies to G-code programs only (CL data gives the tool "
+                         "tip already)", source=str(path), field="--tool-table")
+    report = read_toolpath_report(path, machine=machine, format=format)
+    said = unfed_notice(report.toolpath)
+    if said is not None:
+        notice(said)
+    return RunProgram(Path(path), toolpath=report)
 
 
 def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
@@ -453,14 +462,16 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 min_speed: float | None = None, feed_scale_max: float | None = None,
                 feed_scale_min: float | None = None,
                 write_anyway: bool | None = None,
-                draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None) -> RunResult:
+                draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None,
+                tool_table=None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
     and ``controller`` have no default: a program compensated for another machine than the
     user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``:
     planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
-    of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s).
+    of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s);
+    ``tool_table``: G-code tool lengths (as :func:`load_program_trajectory`'s).
     ``tolerance``: the G-code decimation
     tolerance per axis (:func:`~.toolpath.writers.gcode_tolerances`).
 
@@ -511,13 +522,14 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                         max_samples=max_samples, iterations=iterations, tolerance=tolerance,
                         progress=progress, workers=workers, learning=learning,
                         ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
-                        draws=draws, format=format)
+                        draws=draws, format=format, tool_table=tool_table)
 
 
 def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
                  max_samples, iterations, tolerance, progress, workers,
                  learning: LearningOptions, ensemble, limits: LimitOptions,
-                 feed_options: ToleranceOptions, draws: int, format: str | None) -> RunResult:
+                 feed_options: ToleranceOptions, draws: int, format: str | None,
+                 tool_table=None) -> RunResult:
     learn = learning.passes
     # the draws learning decides on and run checks on: the options', else ``ensemble``
     learning_ensemble = learning.ensemble or ensemble or MachineEnsemble()
@@ -545,7 +557,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     machine_obj = load_machine(machine)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
-                              max_samples=max_samples, format=format)
+                              max_samples=max_samples, format=format,
+                              tool_table=tool_table)
     step(0, f"plan {program}")
     planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
                                             corner_tolerance=corner_tolerance,

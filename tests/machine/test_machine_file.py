@@ -77,9 +77,22 @@ def _edit(text, old, new):
     ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M6\"]",
      r"\[gcode\] tcp_on: M6 has a meaning of its own"),
     ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = \"M128\"",
-     r"\[gcode\] tcp_on: must be a list of M codes such as \[\"M428\"\]"),
-    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"G43.4\"]",
-     r"\[gcode\] tcp_on: 'G43.4' is not an M code"),
+     r"\[gcode\] tcp_on: must be a list of M or G codes such as \[\"M428\"\] or "
+     r"\[\"G234\"\]"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"TRAORI\"]",
+     r"\[gcode\] tcp_on: 'TRAORI' is not an M or G code"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"G1\"]",
+     r"\[gcode\] tcp_on: G1 has a meaning of its own to the reader"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_off = [\"G234\"]",
+     r"\[gcode\] tcp_off: G234 has a meaning of its own to the reader"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"G43.7\"]\n"
+     "tcp_off = [\"G43.7\"]", r"\[gcode\] tcp_off: G43.7 is in tcp_on too"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[tools]\nT0 = 5.0",
+     r"\[tools\] T0: not a tool number"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[tools]\n1 = \"long\"",
+     r"\[tools\] 1: must be a number"),
+    ("servo_period = 0.001", "servo_period = 0.001\n[tools]\n1 = 1e6",
+     r"\[tools\] 1: must be <= 10000"),
     ("servo_period = 0.001", "servo_period = 0.001\n[gcode]\ntcp_on = [\"M128\"]\n"
      "tcp_off = [\"M128\"]", r"\[gcode\] tcp_off: M128 is in tcp_on too"),
 ])
@@ -104,6 +117,25 @@ def test_gcode_settings(tmp_path):
     assert load_machine("zhang2013").gcode.work_offsets == {}
     none = parse_machine(builtin_machine_text() + "[gcode]\ntcp_on = []\ntcp_off = []\n")
     assert none.gcode.tcp_on == () and none.gcode.tcp_off == ()
+    # G codes: the reader's own TCP codes are accepted (read already), a site's own kept
+    haas = parse_machine(builtin_machine_text() + '[gcode]\ntcp_on = ["G234", "G43.4", '
+                         '"M428", "G43.7"]\ntcp_off = ["G49", "G43.8"]\n')
+    assert haas.gcode.tcp_on == (428,) and haas.gcode.tcp_on_g == (437,)
+    assert haas.gcode.tcp_off == () and haas.gcode.tcp_off_g == (438,)
+
+
+def test_tools_table_gives_lengths_by_tool_number():
+    machine = parse_machine(builtin_machine_text() + "[tools]\n1 = 50\nT12 = 80.5\n")
+    assert dict(machine.tools) == {1: 50.0, 12: 80.5}
+    assert dict(parse_machine(builtin_machine_text()).tools) == {}
+
+
+def test_reserved_g_codes_are_the_readers_own():
+    """RESERVED_G (machine package: no import of the reader) lists the G codes the reader
+    reads with a meaning, less those it reads as TCP switches."""
+    from precontour.machine.gcode import BUILTIN_TCP_OFF_G, BUILTIN_TCP_ON_G, RESERVED_G
+    from precontour.toolpath.gcode import _KNOWN_G
+    assert RESERVED_G == _KNOWN_G - BUILTIN_TCP_ON_G - BUILTIN_TCP_OFF_G
 
 
 def test_unknown_machine_and_controller(machine):

@@ -331,8 +331,6 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 Y0 Z0 A0 C0\nG1 X1\n", r"line 2, word 'G1': feed move without a feed rate"),
     ("G0 X0 Y0 Z0 A0 C0\nG93 G1 X1 F10\nG94 G1 X2\n", r"line 3, word 'G1': feed move without"),
     ("G0 X0\nG95\n", r"line 2, word 'G95': feed per revolution \(G95\) is not supported"),
-    ("G0 X0\nG91 G53 G0 Z0\n", r"line 2, word 'G53': G53 \(move in machine coordinates\) "
-                              r"cannot be incremental \(G91\)"),
     ("G0 X0 Y0 Z0 A0 C0\nG2 X2 I1 F10\nG53 Z0\n", r"line 3, word 'G53': G53 .* needs G0 or "
                                                   r"G1"),
     ("G0 X0\nG28 G0 X1\n", r"line 2, word 'G0': G28 and G0 both use the axis words"),
@@ -1068,13 +1066,6 @@ def _refusal(path, machine):
     ("G21 G90\n_camtolerance=.02\n", 2, "_camtolerance=.02",
      r"is Sinumerik 840D syntax \(a variable assignment\), which this reader does not read; "
      r"post-process without it$"),
-    ("%\nO01000\nG0 G234 Z50. H1\n", 3, "G234",
-     r"is Haas syntax \(tool centre point control, TCPC\), which this reader does not read; "
-     r"post-process for LinuxCNC/Fanuc-style G-code, tool centre point as G43.4$"),
-    ("%\nO01000\nG254\n", 3, "G254",
-     r"is Haas syntax \(dynamic work offset, DWO\), which this reader does not read; "
-     r"post-process without it: in tool centre point mode \(G43.4\) X Y Z are already in "
-     r"the workpiece frame$"),
 ])
 def test_refusals_name_the_construct_the_line_and_what_to_do(machine, tmp_path, text, line,
                                                              construct, what):
@@ -1139,8 +1130,6 @@ HAAS_LINES = ["%", "O01001 (PART1)", "G90 G94 G17", "G21", "G254", "G0 G234 H1 (
     (SINUMERIK_LINES, 3, 'T="BALL6"', "Sinumerik 840D"),
     (SINUMERIK_LINES[:2] + ["N11 T1 D1"] + SINUMERIK_LINES[3:], 5, "CYCLE800(...)",
      "Sinumerik 840D"),
-    (HAAS_LINES, 5, "G254", "Haas"),
-    (HAAS_LINES[:4] + HAAS_LINES[5:], 5, "G234", "Haas"),
 ])
 def test_a_program_in_another_language_says_which(machine, tmp_path, lines, line, construct,
                                                   language):

@@ -6,8 +6,9 @@ A machine file has a ``[kinematics]`` table (``type`` picks a module of
 ``axis_names``) with an optional
 ``friction`` table and optional travel ``p_min``/``p_max``, and named ``[controllers.<name>]``
 tables whose ``type`` picks a parser from :data:`precontour.machine.controllers.CONTROLLER_TYPES`,
-and an optional ``[gcode]`` table of the controller data G-code programs refer to (G28/G30
-reference positions, work offsets; :mod:`precontour.machine.gcode`).
+an optional ``[gcode]`` table of the controller data G-code programs refer to (G28/G30
+reference positions, work offsets; :mod:`precontour.machine.gcode`), and an optional
+``[tools]`` table of tool lengths by tool number (:mod:`precontour.machine.tools`).
 The tilt drive's travel (slot 3) bounds the tilt sign that inverse kinematics picks, unless
 the kinematics table gives its own (``a_min``/``a_max`` of ``ac-trunnion``); on an A-B table
 (``xyzab-tdr``) both rotary drives' travels bound the inverse's choice. Every value is
@@ -18,7 +19,7 @@ s; drive parameters SI.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping
@@ -29,6 +30,7 @@ from .drives import AXES, Drive, Friction
 from ..defaults import BUILTIN_MACHINES, DEFAULT_SERVO_PERIOD
 from ..defaults import builtin_machine_text as _builtin_text
 from .gcode import GcodeSettings, parse_gcode_settings
+from .tools import parse_tools_table
 from ..errors import MachineFileError
 from ..files import check_input_file
 from .kinematics import KINEMATICS_TYPES
@@ -52,6 +54,8 @@ class Machine:
     description: str = ""
     source: str = ""
     gcode: GcodeSettings = GcodeSettings()
+    #: Tool lengths (mm) by tool number, the ``[tools]`` table (empty: none given).
+    tools: Mapping[int, float] = field(default_factory=lambda: MappingProxyType({}))
 
     def controller(self, name: str) -> Controller:
         try:
@@ -226,10 +230,11 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     check_closed_loop_bases(controllers, lambda ctrl_name, message: MachineFileError(
         f"[controllers.{ctrl_name}] {message}", source=source))
     gcode = parse_gcode_settings(top.get_table("gcode", required=False), axis_names)
+    tools = parse_tools_table(top.get_table("tools", required=False))
     top.finish()
     return Machine(name=name, kinematics=kinematics, drives=drives,
                    controllers=MappingProxyType(controllers), servo_period=servo_period,
-                   description=description, source=source, gcode=gcode)
+                   description=description, source=source, gcode=gcode, tools=tools)
 
 
 def _parse_drive(axis: str, table: ConfigTable) -> Drive:

@@ -182,9 +182,11 @@ GCODE_KEYS: tuple[tuple[str, str, str], ...] = (
     ("g28", "mm, rad", "G28 reference position, the machine axes {axes} (default: the machine "
                        "origin, all 0, said once when a program uses it)"),
     ("g30", "mm, rad", "G30 reference position, the same (default: the machine origin)"),
-    ("tcp_on", "", "M codes that switch tool centre point mode on (default: M428, "
-                   "LinuxCNC's remapped switch; an empty list: none)"),
-    ("tcp_off", "", "M codes that switch every tool centre point mode off (default: M429)"),
+    ("tcp_on", "", "M codes (or the site's own G codes) that switch tool centre point mode "
+                   "on (default: M428, LinuxCNC's remapped switch; an empty list: none; "
+                   "G43.4, G43.5 and Haas's G234 are read without it)"),
+    ("tcp_off", "", "M codes (or G codes) that switch every tool centre point mode off "
+                    "(default: M429)"),
 )
 _GCODE_EXAMPLE = {"tcp_on": ["M428"], "tcp_off": ["M429"]}
 
@@ -294,8 +296,24 @@ def machine_template(kinematics: str) -> str:
         for axis in data["drives"]:
             out.comment(f"{axis} = {{ num = [...], den = [...] }}")
     out.blank()
+    _tools_table(out, data.get("tools"))
+    out.blank()
     _gcode_table(out, data.get("gcode"), tuple(data["drives"]))
     return out.text()
+
+
+def _tools_table(out: "_Writer", table: dict | None) -> None:
+    """The ``[tools]`` table: the machine's own, or commented out with an example."""
+    out.comment("optional table: tool lengths by tool number, mm, spindle nose to tip "
+                "(precontour.machine.tools): G43 H, G43.4 H, G234 H select one for TCP moves; "
+                "a tool not given takes the kinematics' tool_offset (said once)")
+    if not table:
+        out.comment("[tools]")
+        out.comment("1 = 50.0")
+        return
+    out.line("[tools]")
+    for number, length in table.items():
+        out.line(f"{_toml_key(str(number))} = {_toml_value(float(length))}")
 
 
 def _gcode_table(out: "_Writer", table: dict | None, axes: tuple[str, ...]) -> None:

@@ -1,10 +1,11 @@
 """Other controllers' languages, recognized in the lines the G-code reader refuses.
 
-The reader (:mod:`.gcode`) reads RS274/NGC as LinuxCNC and Fanuc-style controls write it, and
-Sinumerik's ``TRAORI``. A program posted for another control stops on its first line of that
-control's own syntax; without this module the refusal names a letter (``DEF REAL _X`` as
-word ``'D'``). Here such a line is matched against the constructs of three families, so that
-the refusal names the construct as written, the language, and what to do:
+The reader (:mod:`.gcode`) reads RS274/NGC as LinuxCNC and Fanuc-style controls write it,
+Haas's own codes (``G234``, ``G254``/``G255``) and Sinumerik's ``TRAORI``. A program posted for
+another control stops on its first line of that control's own syntax; without this module the
+refusal names a letter (``DEF REAL _X`` as word ``'D'``). Here such a line is matched against
+the constructs of two families, so that the refusal names the construct as written, the
+language, and what to do:
 
 - Sinumerik 840D: ``DEF`` declarations, ``MSG(...)``, cycle calls (``CYCLE800(...)``,
   ``CYCLE832(...)``), ``WORKPIECE(...)``, frames (``TRANS``, ``ATRANS``, ``ROT``, ``AROT``,
@@ -16,8 +17,7 @@ the refusal names the construct as written, the language, and what to do:
   ``TOOL CALL``, ``CYCL DEF``, ``PLANE ...``, ``FUNCTION ...``, labels, Q parameters, and the
   numbered contour blocks ``L``, ``C``, ``CC``, ``CR``, ``CT``, ``RND``, ``CHF`` with signed
   coordinates or ``FMAX`` (``5 L X+10 Y-5 R0 FMAX``; a G-code line never begins with a
-  number);
-- Haas: ``G234`` (tool centre point control), ``G254``/``G255`` (dynamic work offsets).
+  number).
 
 Only lines the reader has refused are matched (:func:`foreign_construct`), so nothing here
 changes what is read. :func:`program_language` looks over a whole program for the same
@@ -132,12 +132,6 @@ _RULES = (
           r"(?=.*(?:[XYZABCIJK][+-]\d|FMAX|DR[+-]|R[LR0]\b)).*)", HEIDENHAIN,
           "a contour block", flags=0),
     _rule(r"^\s*\d+\s+(?P<c>\*\s.*)", HEIDENHAIN, "a section heading", flags=0),
-    # Haas
-    _rule(_G_START + r"G0*234" + _G_END, HAAS, "tool centre point control, TCPC",
-          "post-process for LinuxCNC/Fanuc-style G-code, tool centre point as G43.4"),
-    _rule(_G_START + r"G0*25[45]" + _G_END, HAAS, "dynamic work offset, DWO",
-          "post-process without it: in tool centre point mode (G43.4) X Y Z are already in "
-          "the workpiece frame"),
 )
 
 #: Words the reader reads that only Sinumerik writes: evidence of the language of a program,

@@ -1,5 +1,5 @@
 """Reader for G-code programs as CAM post-processors write them (RS274/NGC, Fanuc, LinuxCNC,
-Sinumerik TRAORI), into a :class:`~precontour.toolpath.program.Program` in machine axes.
+Haas, Sinumerik TRAORI), into a :class:`~precontour.toolpath.program.Program` in machine axes.
 
 What is read, block by block with the usual modal state:
 
@@ -13,9 +13,12 @@ What is read, block by block with the usual modal state:
 - G90/G91, G90.1/G91.1 (arc centres absolute / incremental), G20/G21, modal motion and
   coordinates, ``N`` numbers, ``( )`` and ``;`` comments, ``/`` block delete, ``%``, ``O``
   program numbers;
-- tool centre point (TCP) mode, switched per block: G43.4/G43.5 ... G49, TRAORI ... TRAFOOF,
-  the site's own M codes (the machine file's ``[gcode] tcp_on``/``tcp_off``, by default
-  LinuxCNC's remapped M428 ... M429; the off code ends every TCP mode, G49 only G43.4's), or
+- tool centre point (TCP) mode, switched per block: G43.4/G43.5 ... G49, Haas's G234 ... G49
+  (or G43), TRAORI ... TRAFOOF, the site's own M or G codes (the machine file's
+  ``[gcode] tcp_on``/``tcp_off``, by default LinuxCNC's remapped M428 ... M429; the off code
+  ends every TCP mode, G49 only G43.4's and G234's), Haas's dynamic work offset G254 ... G255
+  (X Y Z in the work frame turned with the rotary axes: a TCP mode whose rotary moves turn the
+  table with the linear axes held, as for 3+2 positioning; not with G234 or G43.4), or
   from the start with ``tcp=True``: X Y Z are then the tool tip in the workpiece frame, the
   rotary axes are taken as programmed and the linear axes follow from the machine's
   kinematics; at a switch the position is carried over through the kinematics (LinuxCNC
@@ -26,11 +29,14 @@ What is read, block by block with the usual modal state:
   (G54-G59.3, Fanuc's G54.1 P1-P300; from the machine file's ``[gcode.work_offsets]``, else
   zero, said once) and the G92 offset (G92, G92.1, G92.2, G92.3); G10 L2/L20 Pn set a work
   offset; G53 moves in machine coordinates (in TCP mode: the machine axes, a move in joint
-  space); G28/G30 rapid through the given point to the machine file's reference position
+  space; under G91 its words are machine positions, as a Haas control moves, said once); G28/G30 rapid through the given point to the machine file's reference position
   (``[gcode] g28``/``g30``, else the machine origin, said once) for the given axes (all
   without axis words), in machine coordinates; G28.1/G30.1 store the current position;
-  tool length offsets (G43 H) are not applied (the machine file's kinematics carries the tool
-  length);
+  tool lengths: the machine file's kinematics carries one (``tool_offset``); with a tool
+  table (the machine file's ``[tools]``, or ``tool_table=``) the length of the tool that G43 H,
+  G43.4 H, G234 H select (no H: the tool of the last T M6 or M61 Q) turns TCP tool tips into
+  machine axes, a tool the table lacks said once; the axis words of moves outside TCP are
+  machine axes as written, whatever the length;
 - LinuxCNC's language (:mod:`._ngc`): numbered and named parameters (``#1``, ``#<depth>``,
   global ``#<_name>``, LinuxCNC's predefined ``#<_x>`` ... and stored ``#5161`` ...),
   expressions with its operators, precedence and functions, polar coordinates (``@`` radius,
@@ -71,6 +77,7 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
@@ -79,6 +86,7 @@ import pyarrow as pa
 
 from ..errors import ForeignSyntaxError, InputError, ProgramError
 from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
+from ..machine.tools import checked_tool_lengths, read_tool_table
 from ._common import INCH, ReadReport, finish, read_text
 from ._cycles import PECK_CLEARANCE_INCH, cycle_moves
 from ._dialects import REPOST, foreign_construct, program_language
@@ -122,12 +130,20 @@ _NON_MODAL = (40, 100, 280, 281, 300, 301, 530, 920, 921, 922, 923)
 _AXIS_WORD_CODES = frozenset([100, 280, 300, 920])
 #: Fanuc's tilted working plane: G68.2 (define), G53.1 (tool along its Z), G69 (cancel).
 _TILT_G = frozenset([682, 531, 690])
-_MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940, 980, 990])
+#: Haas's tool centre point control G234 (on until G49, like G43.4; G43 ends it too) and its
+#: dynamic work offset G254 / G255 (on / off), in tenths.
+_HAAS_TCP_G = 2340
+_DWO_ON_G, _DWO_OFF_G = 2540, 2550
+_MODE_G = frozenset([200, 210, 434, 435, 900, 901, 910, 911, 930, 940, 980, 990, _HAAS_TCP_G,
+                     _DWO_ON_G, _DWO_OFF_G])
 _MODAL_GROUPS = (frozenset(_MOTION), frozenset(_PLANES), frozenset([200, 210]),
                  frozenset([980, 990]),
                  frozenset([900, 910]), frozenset([901, 911]), frozenset([930, 940]),
-                 frozenset([430, 431, 434, 435, 490]), frozenset(_WORK_OFFSET_G),
-                 frozenset(_NON_MODAL), frozenset([610, 611, 640]), frozenset([682, 690]))
+                 frozenset([430, 431, 434, 435, 490, _HAAS_TCP_G]), frozenset(_WORK_OFFSET_G),
+                 frozenset(_NON_MODAL), frozenset([610, 611, 640]), frozenset([682, 690]),
+                 frozenset([_DWO_ON_G, _DWO_OFF_G]))
+#: Codes that apply a tool length (H, else the current tool): G43, G43.4, G43.5, G234.
+_LENGTH_G = frozenset([430, 434, 435, _HAAS_TCP_G])
 _KNOWN_G = (frozenset(_MOTION) | PASSTHROUGH_G | _MODE_G | frozenset(_WORK_OFFSET_G)
             | frozenset(_NON_MODAL) | _TILT_G)
 _UNSUPPORTED_G = {
@@ -184,7 +200,8 @@ __all__ = ["read_program", "read_gcode", "read_gcode_report", "AXIS_WORDS",
 
 def read_program(path: str | Path, machine, *, tcp: bool = False,
                  block_delete: bool = True,
-                 arc_tolerance: float = ARC_CHORD_TOLERANCE) -> Program:
+                 arc_tolerance: float = ARC_CHORD_TOLERANCE,
+                 tool_table=None) -> Program:
     """Read a G-code program into machine-axis moves (see the module docstring).
 
     Parameters
@@ -202,6 +219,12 @@ def read_program(path: str | Path, machine, *, tcp: bool = False,
         Skip blocks starting with ``/``.
     arc_tolerance : float
         Largest distance between an arc and its chords, mm.
+    tool_table : str, Path or Mapping[int, float], optional
+        Tool lengths (mm) by tool number: a LinuxCNC tool table file (``.tbl``) or a mapping;
+        it replaces the machine file's ``[tools]``. The length of the tool that ``G43 H``,
+        ``G43.4 H``, ``G234 H`` select (without H: the tool of the last ``T.. M6`` or
+        ``M61 Q``) turns the tool tips of TCP moves into machine axes; a tool the table lacks
+        is said once and takes the machine file's ``tool_offset``.
 
     Returns
     -------
@@ -220,8 +243,15 @@ def read_program(path: str | Path, machine, *, tcp: bool = False,
     text = read_text(path)
     axes = _axis_letters(machine)
     settings = getattr(machine, "gcode", None) or GcodeSettings()
-    return _Reader(source, kinematics, axes, tcp, block_delete, arc_tolerance,
-                   settings).run(text)
+    if tool_table is None:
+        lengths = getattr(machine, "tools", None) or {}
+    elif isinstance(tool_table, (str, Path)):
+        lengths = read_tool_table(tool_table)
+    else:
+        lengths = checked_tool_lengths(tool_table, field="tool_table")
+    reader = _Reader(source, kinematics, axes, tcp, block_delete, arc_tolerance, settings)
+    reader.tool_lengths = dict(lengths)
+    return reader.run(text)
 
 
 class _Reader:
@@ -243,6 +273,20 @@ class _Reader:
         # every one: the controller switches its kinematics)
         self.tcp_sources = {"option"} if tcp else set()
         self.tcp_on, self.tcp_off = frozenset(settings.tcp_on), frozenset(settings.tcp_off)
+        # the site's G-code TCP switches (the machine file's tcp_on/tcp_off G codes, tenths)
+        self.tcp_on_g = frozenset(settings.tcp_on_g)
+        self.tcp_off_g = frozenset(settings.tcp_off_g)
+        # tool lengths: the table (tool number -> mm), the tool in the spindle (T .. M6,
+        # M61 Q) and the one selected, the length in use (NaN: the machine file's
+        # tool_offset), the kinematics of each length, the tools said to be missing
+        self.tool_lengths = {}
+        self.next_tool = self.tool = None
+        self.length = math.nan
+        self.base_kinematics = kinematics
+        self.length_kinematics = {}
+        self.said_tools = set()
+        self.said_g53_incremental = False
+        self.dwo_base = None          # G254: the work offset it turns with the table
         self.motion = None
         self.plane = _PLANES[170]
         self.inch = False
@@ -284,6 +328,7 @@ class _Reader:
         self.start = None
         self.start_line = 0
         self.start_tcp = tcp
+        self.start_length = math.nan
         # per move: programmed end (mm, deg), rapid, duration, feed, line, tcp, tolerance;
         # per programmed move: kind, end, centre, plane, turns, G93, F, line, tcp, first move
         self.moves = _Table()
@@ -431,6 +476,8 @@ class _Reader:
     def plain_blocks(self, pending) -> bool:
         """Vectorized :meth:`general` for plain blocks: False (nothing changed) if one of them
         needs the general path."""
+        if self.dwo_base is not None:
+            return False    # G254 turns the work offset block by block (dwo_origin)
         rows = np.array([row for row, _, _ in pending], dtype=np.int64)
         columns = list(zip(*(groups for _, groups, _ in pending)))
         # pyarrow's C++ parser: about ten times faster than float() on each word
@@ -977,7 +1024,7 @@ class _Reader:
         for code, word in g_codes:
             if code in _UNSUPPORTED_G:
                 self.fail(_UNSUPPORTED_G[code], word)
-            if code not in _KNOWN_G:
+            if code not in _KNOWN_G and code not in self.tcp_on_g | self.tcp_off_g:
                 self.refuse(f"unsupported G code {_g_name(code)}", word, raw)
             for group_index, group in enumerate(_MODAL_GROUPS):
                 if code in group:
@@ -1080,10 +1127,21 @@ class _Reader:
             self.tcp_sources.add("M")
         if m_switch & self.tcp_off:
             self.tcp_sources.clear()
+        # the site's G codes (the machine file's tcp_on/tcp_off) act like its M codes
+        g_switch = codes & (self.tcp_on_g | self.tcp_off_g)
+        if g_switch & self.tcp_on_g:
+            self.tcp_sources.add("M")
+        if g_switch & self.tcp_off_g:
+            self.tcp_sources.clear()
+        self.tool_change(values, spelled, m_numbers)
+        self.haas_modes(codes, g_word, values, spelled)
+        if codes & _LENGTH_G:
+            self.select_length(values, spelled, g_word[min(codes & _LENGTH_G)])
         if 434 in codes or 435 in codes:
             self.tcp_sources.add("G43.4")
         if 490 in codes:
             self.tcp_sources.discard("G43.4")
+            self.tcp_sources.discard("G234")
         if traori:
             self.tcp_sources.add("TRAORI")
         if trafoof:
@@ -1094,6 +1152,8 @@ class _Reader:
                       next((w for c, w in m_codes if c // 10 in m_switch), None)
                       or g_word.get(434) or g_word.get(435))
         self.set_tcp(bool(self.tcp_sources))
+        if 490 in codes:
+            self.set_length(math.nan)     # after the switch: G49 ends TCP at the old length
         if self.tilt is not None and (non_modal in (100, 280, 300, 530, 920, 921, 922, 923)
                                       or set(_WORK_OFFSET_G) & codes):
             code = non_modal if non_modal in g_word else min(set(_WORK_OFFSET_G) & codes)
@@ -1200,14 +1260,22 @@ class _Reader:
         elif non_modal == 530:
             if self.motion not in (0, 1):
                 self.fail("G53 (move in machine coordinates) needs G0 or G1", g_word[530])
-            if self.incremental:
-                self.fail("G53 (move in machine coordinates) cannot be incremental (G91)",
-                          g_word[530])
+            if self.incremental and moves_axes and not self.said_g53_incremental:
+                # LinuxCNC refuses G53 under G91; Haas (and posts for it: NX writes G91 G28
+                # Z0. then G53 G00 Z0.) moves to the machine position the words give
+                self.said_g53_incremental = True
+                self.notices.append(f"{self.source}, line {self.row}: G53 under G91: its axis "
+                                    "words are taken as machine positions (absolute), as a "
+                                    "Haas control moves; LinuxCNC refuses G53 under G91")
             if moves_axes:
                 self.machine_move(self.motion == 0, values, spelled, scale)
         elif is_cycle:
+            if self.dwo_base is not None:
+                self.dwo_origin(spelled)
             self.cycle(values, spelled, scale, previous_motion, g_word)
         elif moves_axes or is_arc and centre_only:
+            if self.dwo_base is not None:
+                self.dwo_origin(spelled)
             # (G2/G3 with a centre and no axis words: a full circle, as in LinuxCNC)
             self.move(values, spelled, scale, g_codes)
 
@@ -1234,6 +1302,123 @@ class _Reader:
             if text:
                 self.passthrough.append((self.row, text))
         return end
+
+    # ------------------------------------------------------------------ Haas modes, tools
+    def haas_modes(self, codes, g_word, values, spelled):
+        """Haas's G234 (tool centre point control: as G43.4, on until G49, G43 or the program
+        end) and G254 / G255 (dynamic work offset on / off, see :meth:`dwo_origin`); the two
+        exclude each other (Haas mill operator's manual, G234 and G254 notes)."""
+        if _HAAS_TCP_G in codes:
+            if self.dwo_base is not None:
+                self.fail("G234 (tool centre point control) with G254 (dynamic work offset) "
+                          "on: Haas runs them one at a time; cancel G254 with G255 first",
+                          g_word[_HAAS_TCP_G])
+            self.tcp_sources.add("G234")
+        elif 430 in codes:
+            self.tcp_sources.discard("G234")   # G43 ends G234 (one tool length group)
+        if _DWO_ON_G in codes:
+            on = next((name for name in ("G234", "G43.4", "TRAORI", "M", "option", "G68.2")
+                       if name in self.tcp_sources), None)
+            if on is not None:
+                self.fail("G254 (dynamic work offset) in tool centre point mode "
+                          f"({'the TCP switch' if on in ('M', 'option') else on}): Haas runs "
+                          "them one at a time; end TCP first", g_word[_DWO_ON_G])
+            if self.dwo_base is None:
+                self.dwo_base = list(self.g5x)
+        if _DWO_OFF_G in codes and self.dwo_base is not None:
+            self.g5x, self.dwo_base = self.dwo_base, None
+
+    def dwo_origin(self, spelled):
+        """Under G254, before a block's moves: the work offset's linear part turned with the
+        rotary axes where they stand. Haas's DWO keeps the program's X Y Z along the machine
+        axes (the tool stays along Z: 3+2 positioning) and moves their origin, the work
+        offset, with the table about its centres of rotation: the work offset is a machine
+        position at B = C = 0, its tool tip is carried by the table to B, C, and the origin
+        is the machine position that puts the tip there (the kinematics' inverse). Rotary
+        words move the rotary axes only (the linear axes hold, as in the Haas manual's DWO
+        example); with linear words in the same block it would be simultaneous motion, which
+        DWO does not do."""
+        rotary = [spelled[a] for a in self.axes[3:] if a in spelled]
+        linear = [spelled[a] for a in self.axes[:3] if a in spelled]
+        if rotary and linear:
+            self.fail(f"{rotary[0]} and {linear[0]} in one block under G254 (dynamic work "
+                      "offset, for 3+2 positioning): move the rotary axes in a block of their "
+                      "own, or use G234 (tool centre point control) for simultaneous motion",
+                      rotary[0])
+        rot = self.prog[3:]
+        if not all(math.isfinite(v) for v in rot):
+            self.fail("G254 (dynamic work offset) before the rotary axes' positions are "
+                      "known: position them first", rotary[0] if rotary else None)
+        base = np.array([*self.dwo_base[:3], 0.0, 0.0])
+        tip, _ = self.base_kinematics.forward(base)
+        origin = self.base_kinematics.linear_axes(np.asarray(tip).reshape(1, 3),
+                                                  np.radians([rot]))[0]
+        self.g5x = [*map(float, origin), *self.dwo_base[3:]]
+
+    def tool_change(self, values, spelled, m_numbers):
+        """T (the next tool), M6 (it goes in the spindle), M61 Q (the tool in the spindle)."""
+        if "T" in values:
+            number = values["T"]
+            if number != int(number) or number < 0:
+                self.fail(f"tool number {spelled['T']!r} must be a whole number >= 0",
+                          spelled["T"])
+            self.next_tool = int(number)
+        if 6 in m_numbers and self.next_tool is not None:
+            self.tool = self.next_tool
+        if 61 in m_numbers and "Q" in values and values["Q"] == int(values["Q"]):
+            self.tool = int(values["Q"])
+
+    def select_length(self, values, spelled, word):
+        """G43 / G43.4 / G43.5 / G234: the length of tool H, without H of the tool in the
+        spindle (LinuxCNC, Haas); a tool the table lacks (or H0, no tool) takes the machine
+        file's tool_offset, said once per tool when there is a table."""
+        if "H" in values:
+            number = values["H"]
+            if number != int(number) or number < 0:
+                self.fail(f"tool length offset {spelled['H']!r} must be a whole number >= 0",
+                          spelled["H"])
+            number = int(number)
+        else:
+            number = self.tool
+        length = math.nan
+        if number:
+            length = self.tool_lengths.get(number, math.nan)
+            if math.isnan(length) and self.tool_lengths and number not in self.said_tools:
+                self.said_tools.add(number)
+                called = spelled.get("H", word)
+                default = getattr(self.base_kinematics, "tool_offset", 0.0)
+                self.notices.append(f"{self.source}, line {self.row}: tool {number} ({called}) "
+                                    "is not in the tool table; its length is the machine "
+                                    f"file's tool_offset ({default:g} mm)")
+        self.set_length(length)
+
+    def set_length(self, length: float):
+        """Use the tool length ``length`` (mm; NaN: the machine file's tool_offset) from now
+        on; in TCP mode the machine axes stay where they are and the tip follows."""
+        same = (math.isnan(length) and math.isnan(self.length)) or length == self.length
+        if same:
+            return
+        carry = self.tcp and all(math.isfinite(v) for v in self.prog)
+        if carry:
+            machine = self.convert(self.prog, True, False)
+        self.length = length
+        self.kinematics = self.kinematics_of(length)
+        if carry:
+            self.prog = self.convert(machine, False, True)
+
+    def kinematics_of(self, length: float):
+        """The machine's kinematics with tool length ``length`` (NaN: as in the file)."""
+        if math.isnan(length):
+            return self.base_kinematics
+        kinematics = self.length_kinematics.get(length)
+        if kinematics is None:
+            if not hasattr(self.base_kinematics, "tool_offset"):
+                raise InputError("a tool table needs kinematics with a tool_offset; "
+                                 f"{type(self.base_kinematics).__name__} has none",
+                                 source=self.source, field="tool_table")
+            kinematics = replace(self.base_kinematics, tool_offset=float(length))
+            self.length_kinematics[length] = kinematics
+        return kinematics
 
     # ------------------------------------------------------------------ coordinates
     def convert(self, pos, from_tcp: bool, to_tcp: bool) -> list[float]:
@@ -1280,12 +1465,18 @@ class _Reader:
             target = [t if math.isfinite(t) else r for t, r in zip(target, full)]
         return target
 
-    def machine_axes(self, prog: np.ndarray, tcp: np.ndarray) -> np.ndarray:
-        """Machine axes (mm, rad) of programmed coordinates (mm, deg) in either mode."""
+    def machine_axes(self, prog: np.ndarray, tcp: np.ndarray, length: np.ndarray
+                     ) -> np.ndarray:
+        """Machine axes (mm, rad) of programmed coordinates (mm, deg) in either mode; TCP
+        tips through the kinematics of each move's tool length (NaN: the file's)."""
         q = np.array(prog, dtype=float)
         q[:, 3:] = np.radians(q[:, 3:])
         if tcp.any():
-            q[tcp, :3] = self.kinematics.linear_axes(q[tcp, :3], q[tcp, 3:])
+            key = np.where(np.isnan(length), -np.inf, length)
+            for value in np.unique(key[tcp]):
+                rows = tcp & (key == value)
+                kinematics = self.kinematics_of(math.nan if value == -np.inf else value)
+                q[rows, :3] = kinematics.linear_axes(q[rows, :3], q[rows, 3:])
         return q
 
     def select_work_offset(self, code, values, spelled):
@@ -1300,6 +1491,8 @@ class _Reader:
             name = _g_name(code)
         self.work_offset = name
         self.g5x = list(self.offsets.get(name, _ZERO))
+        if self.dwo_base is not None:
+            self.dwo_base = list(self.g5x)   # G254 turns the new offset (dwo_origin)
         if name not in self.offsets and not self.said_offsets:
             self.said_offsets = True
             self.notices.append(f"{self.source}, line {self.row}: the machine file gives no "
@@ -1727,6 +1920,7 @@ class _Reader:
         self.start = list(self.prog)
         self.start_line = row
         self.start_tcp = self.tcp
+        self.start_length = self.length
 
     def timing(self, start, end, n_pieces, spelled, length=None):
         """(duration s, feed mm/s) of each of ``n_pieces`` equal pieces of a feed move."""
@@ -1765,7 +1959,8 @@ class _Reader:
         self.programmed.append((0 if rapid else 1, end, _NO_CENTRE, 0, 0,
                                 self.inverse_time, self.programmed_feed(rapid), self.row, tcp,
                                 self.n_moves))
-        self.moves.append((end, rapid, duration, feed, self.row, tcp, self.path_tolerance))
+        self.moves.append((end, rapid, duration, feed, self.row, tcp, self.path_tolerance,
+                           self.length))
         self.prog = list(target)
         self.n_moves += 1
 
@@ -1788,7 +1983,8 @@ class _Reader:
                            np.broadcast_to(np.asarray(duration, dtype=float), (k,)),
                            np.broadcast_to(np.asarray(feed, dtype=float), (k,)),
                            np.broadcast_to(np.asarray(lines, dtype=np.int64), (k,)),
-                           np.full(k, self.tcp), np.full(k, self.path_tolerance)))
+                           np.full(k, self.tcp), np.full(k, self.path_tolerance),
+                           np.full(k, self.length)))
         if isinstance(programmed, tuple) and not isinstance(programmed[0], np.ndarray):
             self.programmed.append(programmed)
         else:
@@ -1897,12 +2093,13 @@ class _Reader:
         if self.start is None or not self.n_moves:
             raise ProgramError("no motion: no move after a block that sets all axes "
                                f"({' '.join(self.axes)})", source=self.source)
-        ends, rapid, duration, feed, lines, tcp, tolerance = self.moves.columns(
-            (float, bool, float, float, np.int64, bool, float))
+        ends, rapid, duration, feed, lines, tcp, tolerance, length = self.moves.columns(
+            (float, bool, float, float, np.int64, bool, float, float))
         programmed = ProgrammedMoves(*self.programmed.columns(
             (np.int8, float, float, np.int8, np.int64, bool, float, np.int64, bool, np.int64)))
-        q = self.machine_axes(ends, tcp)
-        start = self.machine_axes(np.array([self.start]), np.array([self.start_tcp]))[0]
+        q = self.machine_axes(ends, tcp, length)
+        start = self.machine_axes(np.array([self.start]), np.array([self.start_tcp]),
+                                  np.array([self.start_length]))[0]
         bad = ~np.isfinite(q).all(axis=1)
         if bad.any() or not np.isfinite(start).all():
             k = int(np.flatnonzero(bad)[0]) if bad.any() else 0
@@ -2034,21 +2231,24 @@ def _kinematics(machine):
 # ---------------------------------------------------------------------- ToolPath view
 
 
-def read_gcode(path: str | Path, machine, *, block_delete: bool = True, tcp: bool = False):
+def read_gcode(path: str | Path, machine, *, block_delete: bool = True, tcp: bool = False,
+               tool_table=None):
     """The program's points (start and every move end, arcs subdivided) as a
     :class:`~precontour.toolpath.ToolPath`; see :func:`read_gcode_report`."""
-    return read_gcode_report(path, machine, block_delete=block_delete, tcp=tcp).toolpath
+    return read_gcode_report(path, machine, block_delete=block_delete, tcp=tcp,
+                             tool_table=tool_table).toolpath
 
 
 def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True,
-                      tcp: bool = False) -> ReadReport:
+                      tcp: bool = False, tool_table=None) -> ReadReport:
     """:func:`read_program` seen as a tool path: P, O (direct kinematics) of the start and
     every move end, the feed (mm/s) of the move ending at each point (G93 blocks: tip chord
     length over block time; NaN for rapids), lines, rapid flags, machine axes."""
     if isinstance(machine, (str, Path)):
         from ..machine.machine_file import load_machine
         machine = load_machine(machine)
-    program = read_program(path, machine, tcp=tcp, block_delete=block_delete)
+    program = read_program(path, machine, tcp=tcp, block_delete=block_delete,
+                           tool_table=tool_table)
     kinematics = _kinematics(machine)
     q = program.points
     P, O = kinematics.forward(q)

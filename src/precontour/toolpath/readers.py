@@ -67,7 +67,7 @@ def toolpath_format(path: str | Path, format: str | None = None) -> str:
 
 
 def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
-                  format: str | None = None, tcp: bool = False):
+                  format: str | None = None, tcp: bool = False, tool_table=None):
     """Read a tool path file of any supported format.
 
     Parameters
@@ -88,17 +88,21 @@ def read_toolpath(path: str | Path, *, machine=None, feed_units: str = "mm/min",
     tcp : bool
         G-code only: the program starts in tool centre point mode (see
         :func:`~precontour.toolpath.gcode.read_program`).
+    tool_table : str, Path or Mapping[int, float], optional
+        G-code only: tool lengths, a LinuxCNC ``.tbl`` file or a mapping (see
+        :func:`~precontour.toolpath.gcode.read_program`); None: the machine file's ``[tools]``.
 
     Returns
     -------
     ToolPath
     """
     return read_toolpath_report(path, machine=machine, feed_units=feed_units,
-                                format=format, tcp=tcp).toolpath
+                                format=format, tcp=tcp, tool_table=tool_table).toolpath
 
 
 def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "mm/min",
-                         format: str | None = None, tcp: bool = False) -> ReadReport:
+                         format: str | None = None, tcp: bool = False,
+                         tool_table=None) -> ReadReport:
     """Like :func:`read_toolpath`, returning the :class:`ReadReport` (line of each point,
     rapid flags, duplicates dropped, skipped statements, G-code axis positions)."""
     format = toolpath_format(path, format)
@@ -109,4 +113,4 @@ def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "m
     if machine is None:
         raise ToolPathError("G-code gives machine-axis positions: reading it needs a machine "
                             "(machine=...)", source=str(path))
-    return read_gcode_report(path, machine, tcp=tcp)
+    return read_gcode_report(path, machine, tcp=tcp, tool_table=tool_table)

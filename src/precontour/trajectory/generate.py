@@ -50,6 +50,17 @@ def check_sample_estimate(estimate: float, limit: int | None, detail: str, *,
             source=source or None, field="max_samples")
 
 
+def unfed_notice(toolpath, feed: float = DEFAULT_FEED) -> str | None:
+    """The one notice for CL data that programs no feed (no ``FEDRAT``, no ``F`` column or an
+    empty one): the feed it is planned at, ``feed`` mm/s; None when any point has a feed (or
+    the path is built in, without a feed column)."""
+    feeds = toolpath.feed
+    if feeds is None or np.isfinite(np.asarray(feeds, dtype=float)[1:]).any():
+        return None
+    return (f"{toolpath.source}: no feed is programmed (no FEDRAT, no F column); planned at "
+            f"{feed:g} mm/s ({feed * 60:g} mm/min)")
+
+
 def generate_trajectory(toolpath, machine, *, feed: float = DEFAULT_FEED, ts: float = 0.001,
                         acceleration: float = DEFAULT_ACCELERATION, jerk: float = DEFAULT_JERK,
                         l_eq: float = L_EQ, dwell: float = DEFAULT_DWELL,
