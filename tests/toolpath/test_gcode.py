@@ -1115,11 +1115,6 @@ HEIDENHAIN_LINES = ["0  BEGIN PGM spot-drill MM ", "1  BLK FORM 0.1 Z  X+0  Y-20
 # the tool by name or number (lines 1157-1158), the swivel cycle (line 700), TRAORI (1281).
 SINUMERIK_LINES = ["; %_N_PART1_MPF", "N10 ; PART1", 'N11 T="BALL6" D1', "N12 M6",
                    'N13 CYCLE800(0,"TC1",200000,27,0,0,0,0,30,0,0,0,0,0)', "N14 TRAORI"]
-# Lines as the HAAS Next Generation Control post writes them (sequence numbers off),
-# github.com/ThomasLeMezo/enstabretagne-inventor-cam/blob/1227fed13ee397fcbeb7b23d7e50058f700c02d4/
-# postpro/haas_vf2_inspect_surface_ENSTA.cps: "%" (line 1038), the program number (1053),
-# G90 G94 G17 and G21 (1260, 1267), dynamic work offsets on (1678), TCPC on (3596).
-HAAS_LINES = ["%", "O01001 (PART1)", "G90 G94 G17", "G21", "G254", "G0 G234 H1 (TCPC ON)"]
 
 
 @pytest.mark.parametrize("lines, line, construct, language", [
