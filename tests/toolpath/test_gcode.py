@@ -388,7 +388,8 @@ def test_tcp_linear_axes_agree_with_direct_kinematics(machine):
     ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nG1 A5 F9\n", r"line 3, word 'A5': rotary "
                                                                r"axis word 'A5' with G68.2"),
     ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0\nM428\n", r"line 3, word 'M428': a TCP "
-                                                           r"switch with G68.2 active"),
+                                                           r"switch with G68.2 or CYCLE800 "
+                                                           r"active"),
     ("G0 X0 Y0 Z5 A0 C0\nG68.2 X0 Y0 Z0 I0 J10 K0 G1\n", r"line 2, word 'G68.2': G68.2, G53.1 "
                                                        r"and G69 take a block of their own"),
     ("G0 X1\nG68.2 X0 Y0 Z0 I0 J10 K0\n", r"line 2, word 'G68.2': G68.2 before the position "
@@ -1049,23 +1050,16 @@ def _refusal(path, machine):
     ("G21\nOFinal ToolPath\nG0 X0\n", 2, "OFinal ToolPath",
      r"O takes a program number \(O1000\) or a subroutine name in < > \(o<name> sub\); "
      r"post-process with the program's name in a comment, \(Final ToolPath\), or without it"),
-    ("; part\nN10 G17\nN20 DEF REAL _X\nN30 G0 X0\n", 3, "DEF REAL _X",
-     r"is Sinumerik 840D syntax \(a variable definition\), which this reader does not read; "
+    ("; part\nN10 G17\nN20 DEF REAL _X\nN30 CYCLE81(10,0,1,-5)\n", 4, "CYCLE81(10,0,1,-5)",
+     r"is Sinumerik 840D syntax \(a cycle call\), which this reader does not read; "
      r"post-process for LinuxCNC/Fanuc-style G-code$"),
-    ('N10 G17\nN20 CYCLE800(1,"TC1",200000,57,0,0,0,0,30,0,0,0,0,1,100,1)\n', 2,
-     "CYCLE800(...)", r"is Sinumerik 840D syntax \(the swivel cycle\), which this reader does "
-                      r"not read; post-process for LinuxCNC/Fanuc-style G-code$"),
-    ('G21\nN20 MSG("ROUGHING")\n', 2, 'MSG("ROUGHING")',
-     r"is Sinumerik 840D syntax \(an operator message\), which this reader does not read; "
-     r"post-process with the message as a comment, \(MSG, text\)$"),
-    ("G21\n\nN30 AROT Z45\n", 3, "AROT", r"Sinumerik 840D syntax \(a programmable frame\)"),
-    ("G21\nN20 TRANS X10 Y5\n", 2, "TRANS", r"Sinumerik 840D syntax \(a programmable frame\)"),
+    ("G21\n\nN30 AMIRROR X0\n", 3, "AMIRROR", r"Sinumerik 840D syntax \(a mirroring frame\)"),
     ("0 BEGIN PGM PART MM\n1 BLK FORM 0.1 Z X+0 Y+0 Z-20\n", 1, "BEGIN PGM",
      r"is Heidenhain TNC conversational syntax \(a conversational block\), which this reader "
      r"does not read; post-process for LinuxCNC/Fanuc-style G-code$"),
-    ("G21 G90\n_camtolerance=.02\n", 2, "_camtolerance=.02",
-     r"is Sinumerik 840D syntax \(a variable assignment\), which this reader does not read; "
-     r"post-process without it$"),
+    ("G21 G90\n_camtolerance=.02\nORIVECT\n", 3, "ORIVECT",
+     r"is Sinumerik 840D syntax \(the orientation interpolated on a great circle, not axis by "
+     r"axis\), which this reader does not read; post-process without it$"),
 ])
 def test_refusals_name_the_construct_the_line_and_what_to_do(machine, tmp_path, text, line,
                                                              construct, what):
@@ -1078,10 +1072,10 @@ def test_refusals_name_the_construct_the_line_and_what_to_do(machine, tmp_path, 
 
 
 def test_a_foreign_construct_is_named_once_before_its_message(machine, tmp_path):
-    path = write(tmp_path, "N10 G17\nN20 DEF REAL _X\n", "part.mpf")
+    path = write(tmp_path, "N10 G17\nN20 SCALE X2\n", "part.mpf")
     error = _refusal(path, machine)
     assert isinstance(error, ForeignSyntaxError)
-    assert str(error).startswith(f"{path}, line 2: 'DEF REAL _X' is Sinumerik 840D syntax")
+    assert str(error).startswith(f"{path}, line 2: 'SCALE' is Sinumerik 840D syntax")
 
 
 @pytest.mark.parametrize("text", ["G21\n(unterminated\nG1 X1\n", "G21\nO100 (sub\nG1 X1\n",
@@ -1122,8 +1116,7 @@ SINUMERIK_LINES = ["; %_N_PART1_MPF", "N10 ; PART1", 'N11 T="BALL6" D1', "N12 M6
     (HEIDENHAIN_LINES[1:], 1, "BLK FORM", "Heidenhain TNC conversational"),
     (HEIDENHAIN_LINES[3:], 1, "TOOL CALL", "Heidenhain TNC conversational"),
     (HEIDENHAIN_LINES[4:], 1, "L  X+451.5  Y-25.5 R0 FMAX", "Heidenhain TNC conversational"),
-    (SINUMERIK_LINES, 3, 'T="BALL6"', "Sinumerik 840D"),
-    (SINUMERIK_LINES[:2] + ["N11 T1 D1"] + SINUMERIK_LINES[3:], 5, "CYCLE800(...)",
+    (SINUMERIK_LINES[:5] + ["N15 CYCLE81(10,0,1,-5)"], 6, "CYCLE81(10,0,1,-5)",
      "Sinumerik 840D"),
 ])
 def test_a_program_in_another_language_says_which(machine, tmp_path, lines, line, construct,
@@ -1136,11 +1129,12 @@ def test_a_program_in_another_language_says_which(machine, tmp_path, lines, line
 
 
 def test_a_refusal_says_which_language_the_program_looks_like(machine, tmp_path):
-    """A refused construct of no language's own (Sinumerik's G60, exact stop) in a program
-    that shows one elsewhere, even after it; a plain program's refusal says nothing more."""
-    path = write(tmp_path, "N10 G60 G0 X0\nN20 G17\nN30 TRAORI\n", "part.mpf")
+    """A refused construct of no language's own (Sinumerik's G153, machine coordinates
+    keeping the base frame) in a program that shows one elsewhere, even after it; a plain
+    program's refusal says nothing more."""
+    path = write(tmp_path, "N10 G153 G0 X0\nN20 G17\nN30 TRAORI\n", "part.mpf")
     assert str(_refusal(path, machine)) == (
-        f"{path}, line 1, word 'G60': unsupported G code G60; the program looks like "
+        f"{path}, line 1, word 'G153': unsupported G code G153; the program looks like "
         "Sinumerik 840D ('TRAORI' on line 3): post-process for LinuxCNC/Fanuc-style G-code")
     path = write(tmp_path, "G0 X0\nG1 B45. F100\nN30 MSG(\"TOOL 2\")\n", "part.nc")
     assert str(_refusal(path, machine)).endswith(

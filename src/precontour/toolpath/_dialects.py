@@ -7,12 +7,10 @@ refusal names a letter (``DEF REAL _X`` as word ``'D'``). Here such a line is ma
 the constructs of two families, so that the refusal names the construct as written, the
 language, and what to do:
 
-- Sinumerik 840D: ``DEF`` declarations, ``MSG(...)``, cycle calls (``CYCLE800(...)``,
-  ``CYCLE832(...)``), ``WORKPIECE(...)``, frames (``TRANS``, ``ATRANS``, ``ROT``, ``AROT``,
-  ``SCALE``, ``MIRROR``), tools by name (``T="name"``), R parameters (``R1=5``), variables
-  (``_camtolerance=0.02``), addresses with ``=`` (``Z=_Z_HOME``, ``A3=0.5``), its keywords
-  (``SUPA``, ``SOFT``, ``COMPCAD``, ``ORIWKS`` ...) and G codes (``G500``, ``G64x``,
-  ``G700``/``G710``);
+- Sinumerik 840D: what the reader does not read in a Sinumerik program (it reads ``DEF``,
+  ``MSG``, ``CYCLE800``, ``CYCLE832``, frames, variables ...: :mod:`._sinumerik_blocks`):
+  other cycle calls (``CYCLE81(...)``), ``SCALE``/``MIRROR`` frames, orientation vectors
+  (``A3=``), keywords that change the orientation's interpolation (``ORIVECT`` ...) or jump;
 - Heidenhain TNC conversational (Klartext): ``BEGIN PGM`` / ``END PGM``, ``BLK FORM``,
   ``TOOL CALL``, ``CYCL DEF``, ``PLANE ...``, ``FUNCTION ...``, labels, Q parameters, and the
   numbered contour blocks ``L``, ``C``, ``CC``, ``CR``, ``CT``, ``RND``, ``CHF`` with signed
@@ -21,8 +19,9 @@ language, and what to do:
 
 Only lines the reader has refused are matched (:func:`foreign_construct`), so nothing here
 changes what is read. :func:`program_language` looks over a whole program for the same
-constructs and for the Sinumerik words the reader does read (``TRAORI``, ``TRAFOOF``, a
-``%_N_..._MPF`` header), to say which language a program looks like when its refused line is
+constructs and for the Sinumerik words the reader does read (``TRAORI``, ``DEF``,
+``CYCLE800(...)``, a ``%_N_..._MPF`` header ...: the reader reads a program that shows them as
+Sinumerik's), to say which language a program looks like when its refused line is
 no construct of its own (a ``G60`` in a Sinumerik program). Clues common to every family are
 no evidence: ``;`` comments and ``N`` numbers (LinuxCNC), ``%`` and ``O`` numbers (Fanuc), and
 ``G43.4`` is read.
@@ -96,33 +95,18 @@ _CALL_NAMES = r"(?:MSG|CYCLE\d+|WORKPIECE|POCKET\d+|SLOT\d+|HOLES\d+|IC|AC|DC|AC
 
 #: Constructs the reader does not read; of two that begin at one place, the first listed.
 _RULES = (
-    # Sinumerik 840D
-    _rule(_START + r"DEF\s+(?:REAL|INT|BOOL|CHAR|STRING|AXIS|FRAME)\b[^;]*", SINUMERIK,
-          "a variable definition"),
-    _rule(_START + r"MSG\s*\(", SINUMERIK, "an operator message",
-          "post-process with the message as a comment, (MSG, text)", call=True),
-    _rule(_START + r"CYCLE832\s*\(", SINUMERIK, "high-speed settings",
-          "post-process without it (a path tolerance is G64 P)", call=True),
-    _rule(_START + r"CYCLE800\s*\(", SINUMERIK, "the swivel cycle", call=True),
+    # Sinumerik 840D: what the reader does not read in a Sinumerik program (the constructs it
+    # reads are clues of the language, below)
     _rule(_START + r"(?:CYCLE|POCKET|SLOT|HOLES)\d+\s*\(", SINUMERIK, "a cycle call",
           call=True),
-    _rule(_START + r"WORKPIECE\s*\(", SINUMERIK, "a blank for the simulation",
-          "post-process without it", call=True),
-    _rule(_START + r"A?(?:TRANS|ROT|SCALE|MIRROR)" + _END, SINUMERIK, "a programmable frame"),
-    _rule(_START + r"T\s*=\s*\"[^\"]*\"", SINUMERIK, "a tool called by name",
-          "post-process with tool numbers (T1 M6)"),
-    _rule(_START + r"R\d+\s*=\s*[^\s;]*", SINUMERIK, "an R parameter"),
+    _rule(_START + r"A?(?:SCALE|MIRROR)" + _END, SINUMERIK, "a programmable frame"),
     # Heidenhain's Q parameters, before Sinumerik's addresses with a number (A3=, S1=)
     _rule(_START + r"Q\d+\s*=\s*[^\s;]*", HEIDENHAIN, "a Q parameter"),
-    _rule(_START + r"[A-Z]\d+\s*=\s*[^\s;]+", SINUMERIK, "an extended address"),
-    _rule(_START + r"[_$A-Z][\w$]+(?:\[[^\]]*\])?\s*=\s*[^\s;]*", SINUMERIK,
-          "a variable assignment", "post-process without it"),
-    _rule(_START + r"[A-Z]\s*=\s*(?:[_$A-Z(])[^\s;]*", SINUMERIK,
-          "an address set by an expression"),
-    _rule(_START + r"(?:SUPA|SOFT|BRISK|FFWON|FFWOF|COMPCAD|COMPCURV|COMPSURF|COMPOF|ORIWKS|"
-          r"ORIMKS|ORIAXES|ORIVECT|ORIRESET|ORICONO|UPATH|SPATH|CFC|CFTCP|CFIN|STOPRE|GOTOF|"
-          r"GOTOB|FNORM|DIAMOF|DIAMON)" + _END, SINUMERIK, "a keyword"),
-    _rule(_G_START + r"G0*(?:500|64[1-5]|700|710)" + _G_END, SINUMERIK, "a G code of its own"),
+    _rule(_START + r"(?:A|B|C)[3-6]\s*=\s*[^\s;]+", SINUMERIK,
+          "the tool orientation as a vector or its normal (A3= B3= C3=, A4= ...)",
+          "post-process with the rotary axes' positions (A, C) under TRAORI"),
+    _rule(_START + r"(?:ORIVECT|ORIRESET|ORICONO|ORICONCW|ORICONCCW|ORICONIO|ORICONTO|ORICURVE|"
+          r"ORIPLANE|ORIEULER|ORIRPY|GOTOF|GOTOB|GOTOC|DIAMON)" + _END, SINUMERIK, "a keyword"),
     # Heidenhain conversational: key words, and contour blocks with signed coordinates or FMAX
     _rule(_START + r"(?:BEGIN\s+PGM|END\s+PGM|BLK\s+FORM|TOOL\s+(?:CALL|DEF)|"
           r"CYCL\s+(?:DEF|CALL)|CALL\s+(?:LBL|PGM)|LBL\s+\S+|FN\s*\d+\s*:|FUNCTION\s+\w+|"
@@ -139,6 +123,20 @@ _RULES = (
 _CLUES = (
     _rule(_START + r"(?:TRAORI|TRAFOOF)" + _END, SINUMERIK, "its tool centre point mode"),
     _rule(r"%_N_\w+_[MS]PF", SINUMERIK, "a program header"),
+    _rule(_START + r"DEF\s+(?:REAL|INT|BOOL|CHAR|STRING|AXIS|FRAME)\b[^;]*", SINUMERIK,
+          "a variable definition"),
+    _rule(_START + r"(?:MSG|CYCLE800|CYCLE832|WORKPIECE)\s*\(", SINUMERIK, "a call",
+          call=True),
+    _rule(_START + r"A?(?:TRANS|ROT)" + _END, SINUMERIK, "a programmable frame"),
+    _rule(_START + r"T\s*=\s*\"[^\"]*\"", SINUMERIK, "a tool called by name"),
+    _rule(_START + r"R\d+\s*=\s*[^\s;]*", SINUMERIK, "an R parameter"),
+    _rule(_START + r"[_$A-Z][\w$]+(?:\[[^\]]*\])?\s*=\s*[^\s;]*", SINUMERIK,
+          "a variable assignment"),
+    _rule(_START + r"[A-Z]\s*=\s*(?:[_$A-Z(])[^\s;]*", SINUMERIK,
+          "an address set by an expression"),
+    _rule(_START + r"(?:SUPA|COMPCAD|COMPCURV|COMPSURF|COMPOF|ORIWKS|ORIMKS|ORIAXES|FFWON|"
+          r"FFWOF|UPATH|SPATH|CFTCP|STOPRE|FNORM)" + _END, SINUMERIK, "a keyword"),
+    _rule(_G_START + r"G0*(?:500|64[1-5]|700|710)" + _G_END, SINUMERIK, "a G code of its own"),
 )
 
 # what hides a construct: a ; comment, a ( ) comment, a LinuxCNC name (#<name>, o<name>);

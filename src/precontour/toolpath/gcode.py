@@ -56,8 +56,12 @@ What is read, block by block with the usual modal state:
   (:mod:`._cycles`): G98/G99 retract (G99, LinuxCNC's default, without either), R, Q pecks,
   P dwells, L repeats, G91 increments, polar holes, sticky words, G80; in any plane;
 - Fanuc's tilted working plane ``G68.2 X Y Z I J K`` (Euler angles about Z, X, Z), G53.1
-  (the rotary axes turn the tool onto the plane's Z, in joint space) and G69: the program's
-  coordinates are the plane's, its moves tool tip positions (as TCP moves);
+  (the rotary axes turn the tool onto the plane's Z, in joint space, on the solution within
+  travel: :mod:`._swivel`) and G69: the program's coordinates are the plane's, its moves tool
+  tip positions (as TCP moves);
+- Sinumerik 840D programs (``.mpf``, or a program whose first lines show the language):
+  variables, frames, ``SUPA``, ``CYCLE800``, ``CYCLE832``, blending modes ... as
+  :mod:`._sinumerik_blocks` says;
 - :attr:`Program.programmed`: the moves as programmed (straight moves and whole arcs with
   their centres, feeds as given), as LinuxCNC's canonical interface receives them.
 
@@ -65,8 +69,8 @@ Everything else -- subroutines in other files, Fanuc macros (G65, IF/GOTO/WHILE-
 G10 L1/L10/L11 (tool tables), cutter compensation, spindle-synchronized motion (tapping
 G74/G84, G33, G76), G88 (a manual retract), G68 rotation, G68.2 P1-P3, G95, HAL pins
 (``#<_hal[...]>``) -- is one :class:`~precontour.errors.ProgramError` naming the file, line
-and word. A line in another controller's language (Sinumerik 840D's ``DEF``, ``MSG(...)``,
-``CYCLE800(...)``; Heidenhain conversational; Haas's ``G234``, ``G254``) is a
+and word. A line in another controller's language (Sinumerik 840D's constructs it does not read,
+``CYCLE81(...)``, ``ORIVECT``; Heidenhain conversational; Haas's ``G234``, ``G254``) is a
 :class:`~precontour.errors.ForeignSyntaxError` naming the construct as written and the
 language (:mod:`._dialects`); a refused construct that is none of these says which language
 the program looks like, when one of its lines shows one.
@@ -89,7 +93,9 @@ from ..machine.gcode import MAX_EXTENDED_OFFSET, WORK_OFFSETS, GcodeSettings
 from ..machine.tools import checked_tool_lengths, read_tool_table
 from ._common import INCH, ReadReport, finish, read_text
 from ._cycles import PECK_CLEARANCE_INCH, cycle_moves
-from ._dialects import REPOST, foreign_construct, program_language
+from ._dialects import REPOST, SINUMERIK, foreign_construct, program_language
+from ._sinumerik_blocks import SinumerikBlocks
+from ._swivel import rotary_travel, swivel
 from ._ngc import (MAX_PARAMETER, NgcError, OWord, StructureError, compile_line, format_number,
                    needs_macro_reader, scan_structure)
 from .program import Program, ProgrammedMoves, Stop
@@ -179,7 +185,9 @@ MAX_CALL_DEPTH = 100
 _SLOTS = {0: "X", 1: "Y", 2: "Z", 3: "A", 4: "B", 5: "C"}
 _FANUC_MACRO = re.compile(r"(?:N\d+)?(IF\[|GOTO\d|WHILE\[|END\d|DO\d)")
 # kinds of line (see _Reader.prepare)
-_PLAIN, _SKIP, _COMMENT, _SETTINGS, _GENERAL = range(5)
+_PLAIN, _SKIP, _COMMENT, _SETTINGS, _GENERAL, _SINUMERIK = range(6)
+#: File name extensions of Sinumerik programs (main programs, subprograms).
+SINUMERIK_SUFFIXES = (".mpf", ".spf")
 # lines that may be O-word statements (a cheap test before a line's code is worked out)
 _MAYBE_OWORD = re.compile(r"\s*/?\s*[oO]")
 _PASSTHROUGH_WORDS = frozenset("STHD")
@@ -254,7 +262,7 @@ def read_program(path: str | Path, machine, *, tcp: bool = False,
     return reader.run(text)
 
 
-class _Reader:
+class _Reader(SinumerikBlocks):
     """The modal state of the program while it is read, block by block."""
 
     def __init__(self, source, kinematics, axes, tcp, block_delete, arc_tolerance,
@@ -322,6 +330,7 @@ class _Reader:
         self.retract_initial = False
         self.cycle_start = None
         self.tilt = None             # G68.2: (origin, rotation) of the plane's frame
+        self.pframe = None           # Sinumerik's TRANS/ROT ...: (origin, rotation)
         self.tilt_offsets = None
         self.cycle_words = {}
         self.cancelled = False
@@ -342,6 +351,8 @@ class _Reader:
         self.row = 0
         self.lines = ()
         self.language_note = None     # what refusals add about the program's language
+        self.sinumerik = False        # the program is Sinumerik's (its constructs are read)
+        self.sinumerik_setup()
 
     # ------------------------------------------------------------------ errors
     def fail(self, message, word=None):
@@ -376,6 +387,9 @@ class _Reader:
     # ------------------------------------------------------------------ program
     def run(self, text: str) -> Program:
         lines = self.lines = text.splitlines()
+        found = program_language(lines)
+        self.sinumerik = (Path(self.source).suffix.lower() in SINUMERIK_SUFFIXES
+                          or found is not None and found[1].language == SINUMERIK)
         self.structure = self.scan(lines)
         self.prepared = [None] * len(lines)
         owords = self.structure.owords
@@ -444,6 +458,10 @@ class _Reader:
         s = raw.lstrip()
         if s[:1] == "/" and self.block_delete:
             return (_SKIP, True)
+        if self.sinumerik:
+            parsed = self.sinumerik_prepare(raw)
+            if parsed is not None:
+                return (_SINUMERIK, *parsed, raw.strip())
         code, comments = self.code_of(raw)
         if not code:
             return (_COMMENT, raw.strip()) if comments else (_SKIP, False)
@@ -607,6 +625,8 @@ class _Reader:
         if kind == _SETTINGS:
             self.evaluate(prepared[1])
             return False
+        if kind == _SINUMERIK:
+            return self.sinumerik_block(*prepared[1:])
         _, code, traori, trafoof, text, comments = prepared
         words = (self.evaluate(code, text) if needs_macro_reader(code)
                  else self.tokens(code, text))
@@ -1148,13 +1168,15 @@ class _Reader:
             self.tcp_sources.discard("TRAORI")
         if self.tilt is not None and (m_switch or traori or trafoof or 434 in codes
                                       or 435 in codes):
-            self.fail("a TCP switch with G68.2 active: cancel it with G69 first",
+            self.fail("a TCP switch with G68.2 or CYCLE800 active: cancel it with G69 or "
+                      "CYCLE800() first",
                       next((w for c, w in m_codes if c // 10 in m_switch), None)
                       or g_word.get(434) or g_word.get(435))
         self.set_tcp(bool(self.tcp_sources))
         if 490 in codes:
             self.set_length(math.nan)     # after the switch: G49 ends TCP at the old length
-        if self.tilt is not None and (non_modal in (100, 280, 300, 530, 920, 921, 922, 923)
+        if self.tilt is not None and (non_modal in (100, 280, 300, 920, 921, 922, 923)
+                                      or non_modal == 530 and not self.supa
                                       or set(_WORK_OFFSET_G) & codes):
             code = non_modal if non_modal in g_word else min(set(_WORK_OFFSET_G) & codes)
             self.fail(f"{_g_name(code)} with G68.2 active: cancel it with G69 first",
@@ -1438,7 +1460,8 @@ class _Reader:
         if on == self.tcp:
             return
         if all(math.isfinite(v) for v in self.prog):
-            self.prog = self.convert(self.prog, self.tcp, on)
+            self.prog = self.from_workpiece(self.convert(self.to_workpiece(self.prog),
+                                                         self.tcp, on))
         else:
             # the linear axes' meaning changes; they follow from this partial position once
             # the unknown axes are taken as 0 (see resolve)
@@ -1583,9 +1606,9 @@ class _Reader:
     def machine_position(self) -> list[float]:
         """The machine axes now (mm, deg), NaN where not known."""
         if not self.tcp:
-            return list(self.prog)
+            return list(self.to_workpiece(self.prog)) if self.framed else list(self.prog)
         if all(math.isfinite(v) for v in self.prog):
-            return self.convert(self.prog, True, False)
+            return self.convert(list(self.to_workpiece(self.prog)), True, False)
         return [math.nan] * 3 + self.prog[3:]
 
     def machine_move(self, rapid, values, spelled, scale):
@@ -1604,6 +1627,12 @@ class _Reader:
         """A move to machine axes (mm, deg; NaN: the axis stays), programmed in either mode;
         in TCP mode it runs in joint space and the tip follows from the kinematics."""
         if not self.tcp:
+            if self.framed:
+                # SUPA under a frame: the frame's coordinates of the machine position
+                current = self.machine_position()
+                target = [m if math.isfinite(m) else c for m, c in zip(machine, current)]
+                self.go(self.from_workpiece(target), rapid, spelled)
+                return
             self.go([m if math.isfinite(m) else p for m, p in zip(machine, self.prog)],
                     rapid, spelled)
             return
@@ -1623,7 +1652,7 @@ class _Reader:
             target = [m if math.isfinite(m) else c for m, c in zip(machine, current)]
         elif self.start is None:
             if rapid or not all(math.isfinite(v) for v in current):
-                self.prog = self.convert(target, False, True)
+                self.prog = self.from_workpiece(self.convert(target, False, True))
                 self.deferred = []
                 self.begin(self.row)
                 return
@@ -1632,7 +1661,7 @@ class _Reader:
         if not rapid:
             duration, feed = self.timing(current, target, 1, spelled)
         self.add(target, rapid, duration, feed, tcp=False)
-        self.prog = self.convert(target, False, True)
+        self.prog = self.from_workpiece(self.convert(target, False, True))
 
     # ------------------------------------------------------------------ motion
     def target(self, values, spelled, scale):
@@ -1685,58 +1714,97 @@ class _Reader:
         angles I, J, K (degrees; about Z, then the new X, then the new Z); its moves are tool
         tip positions (as in TCP mode) with the rotary axes where they stand. ``G53.1``: the
         rotary axes turn (a rapid in joint space) until the tool is along the frame's +Z
-        (C on the branch nearest where it is). ``G69``: back to the work coordinates."""
+        (:func:`._swivel.swivel`: the solution within travel, of two the one whose C is
+        nearest where it stands). ``G69``: back to the work coordinates."""
         if 682 in codes:
             word = g_word[682]
-            if self.tilt is not None:
-                self.fail("G68.2 again before G69 (a tilted plane on a tilted plane is not "
-                          "supported)", word)
             if values.get("P", 0.0) != 0.0:
                 self.fail(f"G68.2 {spelled['P']}: only the Euler-angle form (P0: I J K about "
                           "Z, X, Z) is supported", spelled["P"])
-            if self.tcp_sources:
-                self.fail("G68.2 in TCP mode is not supported", word)
-            if not all(math.isfinite(v) for v in self.prog):
-                self.fail("G68.2 before the position of every axis is known", word)
             extra = [spelled[a] for a in self.axes[3:] if a in spelled]
             if extra:
                 self.fail(f"axis word {extra[0]!r} in a G68.2 block", extra[0])
-            origin = np.array([values.get(a, 0.0) * scale + o + g for a, o, g in
-                               zip(self.axes[:3], self.g5x, self.g92)])
+            origin = [values.get(a, 0.0) * scale for a in self.axes[:3]]
             rotation = _euler_zxz(values.get("I", 0.0), values.get("J", 0.0),
                                   values.get("K", 0.0))
-            self.tcp_sources.add("G68.2")
-            self.set_tcp(True)                       # the position as a tool tip
-            tip = np.array(self.prog[:3])
-            self.prog = [*map(float, (tip - origin) @ rotation), *self.prog[3:]]
-            self.tilt = (origin, rotation)
-            self.tilt_offsets = (self.g5x, self.g92)
-            self.g5x, self.g92 = list(_ZERO), list(_ZERO)   # in the frame's origin now
+            self.enter_tilt(origin, rotation, word, "G68.2")
         if 531 in codes:
             word = g_word[531]
             if self.tilt is None:
                 self.fail("G53.1 needs a tilted working plane (G68.2)", word)
-            origin, rotation = self.tilt
-            tip = origin + rotation @ np.array(self.prog[:3])
-            current = np.radians(self.prog[3:])
-            q = self.kinematics.inverse(tip[None, :], rotation[None, :, 2],
-                                        c_near=np.array([current[1]]))[0]
-            linear = self.kinematics.linear_axes(tip[None, :], current[None, :])[0]
-            target = [*map(float, linear), *map(math.degrees, q[3:])]
-            if self.start is not None:
-                self.add(target, True, math.nan, math.nan, tcp=False)
-            new_tip, _ = self.kinematics.forward(np.array([*target[:3],
-                                                           *np.radians(target[3:])]))
-            self.prog = [*map(float, (np.asarray(new_tip).reshape(3) - origin) @ rotation),
-                         *target[3:]]
-        if 690 in codes and self.tilt is not None:
-            origin, rotation = self.tilt
-            tip = origin + rotation @ np.array(self.prog[:3])
-            self.prog = [*map(float, tip), *self.prog[3:]]
-            self.g5x, self.g92 = self.tilt_offsets
-            self.tilt = None
-            self.tcp_sources.discard("G68.2")
-            self.set_tcp(bool(self.tcp_sources))
+            self.align_tool(word)
+        if 690 in codes:
+            self.leave_tilt()
+
+    def enter_tilt(self, origin, rotation, word, name, cancel="G69"):
+        """A tilted working plane (G68.2, CYCLE800): its ``origin`` (work coordinates, mm)
+        and ``rotation`` (columns: the plane's axes); the position becomes the tool tip in
+        the plane's frame."""
+        if self.tilt is not None:
+            self.fail(f"{name} again before {cancel} (a tilted plane on a tilted plane is "
+                      "not supported)", word)
+        if self.tcp_sources:
+            self.fail(f"{name} in TCP mode is not supported", word)
+        known = all(math.isfinite(v) for v in self.prog)
+        if not known and (name == "G68.2" or self.start is not None):
+            self.fail(f"{name} before the position of every axis is known", word)
+        origin = np.add(origin, np.add(self.g5x, self.g92)[:3])
+        self.tcp_sources.add("G68.2")
+        if known:
+            self.set_tcp(True)                   # the position as a tool tip
+            tip = np.array(self.prog[:3])
+            self.prog = [*map(float, (tip - origin) @ rotation), *self.prog[3:]]
+        else:
+            # before the first move (a swivel after the tool change): the tip in the plane
+            # becomes known from the plane's moves
+            self.tcp, self.deferred = True, []
+            self.prog = [math.nan] * 3 + self.prog[3:]
+        self.tilt = (origin, rotation)
+        self.tilt_offsets = (self.g5x, self.g92)
+        self.g5x, self.g92 = list(_ZERO), list(_ZERO)   # in the frame's origin now
+
+    def align_tool(self, word, prefer=0):
+        """G53.1 (and CYCLE800's swivel): the rotary axes turn, a rapid in joint space, until
+        the tool is along the plane's +Z; of the two branches the one within travel (then
+        ``prefer``, see :func:`._swivel.swivel`), said when the preferred one is not."""
+        origin, rotation = self.tilt
+        tip = origin + rotation @ np.array(self.prog[:3])
+        current = np.radians(self.prog[3:])
+        known = np.isfinite(tip).all() and np.isfinite(current).all()
+        chosen = swivel(self.kinematics, np.nan_to_num(tip), rotation[:, 2],
+                        np.nan_to_num(current), prefer)
+        if chosen.passed_over is not None:
+            a, c = self.axes[3:]
+            (pa, pc), (ca, cc) = np.degrees(chosen.passed_over), np.degrees(chosen.rotary)
+            low, high = np.degrees(rotary_travel(self.kinematics)[0])
+            self.notices.append(
+                f"{self.source}, line {self.row}: {word}: {a}{pa:.6g} {c}{pc:.6g} is outside "
+                f"the travel ({a} [{low:g}, {high:g}] deg); the other solution {a}{ca:.6g} "
+                f"{c}{cc:.6g} turns the tool onto the same plane")
+        if not known:
+            # before the first move: the axes are where the plane's first moves put them
+            self.prog = self.prog[:3] + [*map(math.degrees, chosen.rotary)]
+            return
+        linear = self.kinematics.linear_axes(tip[None, :], current[None, :])[0]
+        target = [*map(float, linear), *map(math.degrees, chosen.rotary)]
+        if self.start is not None:
+            self.add(target, True, math.nan, math.nan, tcp=False)
+        new_tip, _ = self.kinematics.forward(np.array([*target[:3],
+                                                       *np.radians(target[3:])]))
+        self.prog = [*map(float, (np.asarray(new_tip).reshape(3) - origin) @ rotation),
+                     *target[3:]]
+
+    def leave_tilt(self):
+        """G69 (CYCLE800()): back to the work coordinates."""
+        if self.tilt is None:
+            return
+        origin, rotation = self.tilt
+        tip = origin + rotation @ np.array(self.prog[:3])
+        self.prog = [*map(float, tip), *self.prog[3:]]
+        self.g5x, self.g92 = self.tilt_offsets
+        self.tilt = None
+        self.tcp_sources.discard("G68.2")
+        self.set_tcp(bool(self.tcp_sources))
 
     def cycle(self, values, spelled, scale, previous, g_word):
         """A canned-cycle block (G73, G81-G83, G85-G87, G89), expanded into moves as LinuxCNC
@@ -1917,7 +1985,7 @@ class _Reader:
         self.add(target, rapid, duration, feed)
 
     def begin(self, row):
-        self.start = list(self.prog)
+        self.start = list(self.to_workpiece(self.prog)) if self.framed else list(self.prog)
         self.start_line = row
         self.start_tcp = self.tcp
         self.start_length = self.length
@@ -1943,19 +2011,40 @@ class _Reader:
             return math.nan
         return self.block_f if self.inverse_time else self.feed
 
+    @property
+    def framed(self) -> bool:
+        """A frame turns or shifts the program's coordinates (G68.2, CYCLE800, Sinumerik's
+        TRANS/ROT/ATRANS/AROT)."""
+        return self.tilt is not None or self.pframe is not None
+
     def to_workpiece(self, points):
-        """Under G68.2: points of the tilted plane's frame -> the workpiece frame (the tool
-        tip, as a TCP move); otherwise the points themselves."""
-        if self.tilt is None:
+        """Points in the program's coordinates -> the coordinates of the current mode: the
+        programmable frame (Sinumerik's TRANS/ROT ...) applied, then the tilted plane's
+        (G68.2, CYCLE800: to the workpiece frame, the tool tip as a TCP move); without either,
+        the points themselves."""
+        if not self.framed:
             return points
-        origin, rotation = self.tilt
         points = np.array(points, dtype=float)
-        points[..., :3] = origin + points[..., :3] @ rotation.T
+        for frame in (self.pframe, self.tilt):
+            if frame is not None:
+                origin, rotation = frame
+                points[..., :3] = origin + points[..., :3] @ rotation.T
         return points
 
+    def from_workpiece(self, position):
+        """The inverse of :meth:`to_workpiece` for one position."""
+        position = list(position)
+        for frame in (self.tilt, self.pframe):
+            if frame is not None:
+                origin, rotation = frame
+                position[:3] = map(float, (np.array(position[:3]) - origin) @ rotation)
+        return position
+
     def add(self, target, rapid, duration, feed, tcp=None):
+        # machine axes (tcp given: G53, G53.1) are no program coordinates
+        end = self.to_workpiece(target).tolist() if tcp is None and self.framed \
+            else list(target)
         tcp = self.tcp if tcp is None else tcp
-        end = self.to_workpiece(target).tolist() if tcp and self.tilt else list(target)
         self.programmed.append((0 if rapid else 1, end, _NO_CENTRE, 0, 0,
                                 self.inverse_time, self.programmed_feed(rapid), self.row, tcp,
                                 self.n_moves))
@@ -1969,7 +2058,7 @@ class _Reader:
         programmed moves (the columns of :attr:`programmed`, or one arc's row)."""
         k = ends.shape[0]
         self.prog = ends[-1].tolist()
-        if self.tilt is not None:
+        if self.framed:
             ends = self.to_workpiece(ends)
             if isinstance(programmed, tuple) and not isinstance(programmed[0], np.ndarray):
                 # an arc: its end, and its centre as a point (all three axes) of the plane
@@ -2068,7 +2157,7 @@ class _Reader:
         duration, feed = self.timing(start, target, n_chords, spelled, length=helix)
         centre = [math.nan] * 3
         centre[a], centre[b] = ca, cb
-        if self.tilt is not None:
+        if self.framed:
             centre[n] = start[n]   # a point of the tilted plane, given in all three axes
         rotation = (1 if ccw else -1) * int(turns or 1)
         plane = {(0, 1, 2): 17, (2, 0, 1): 18, (1, 2, 0): 19}[self.plane]
