@@ -97,9 +97,9 @@ def parse_line(code: str) -> list[Item]:
         if c == "/" and not items:
             i += 1
             continue
-        if not (c.isalpha() or c in "_$"):
-            raise SinumerikError(f"cannot read {_rest(code, i)!r}", _rest(code, i))
         ident = _IDENT.match(code, i)
+        if ident is None:      # not a name (a digit, an operator, a letter outside ASCII)
+            raise SinumerikError(f"cannot read {_rest(code, i)!r}", _rest(code, i))
         name = ident.group().upper()
         extended = _EXTENDED.match(code, i)
         if extended and len(ident.group()) == len(extended.group(1) + extended.group(2)):
