@@ -40,7 +40,8 @@ from .simulation.ensemble import MachineEnsemble, ensemble_actual
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
-from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
+from .toolpath import (EXTENSIONS, PROGRAM_FORMATS, read_program, read_toolpath_report,
+                       toolpath_format)
 from .toolpath.writers import (GcodeProgram, ProgramInfo, gcode_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory
@@ -100,7 +101,8 @@ class RunProgram:
 
     @property
     def format(self) -> str:
-        """``"gcode"``, or the CL data's format (``"clcsv"``, ``"apt"``)."""
+        """``"gcode"`` for an NC program (G-code or Heidenhain), or the CL data's format
+        (``"clcsv"``, ``"apt"``)."""
         return "gcode" if self.program is not None else self.toolpath.format
 
 
@@ -112,8 +114,8 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
     :func:`~precontour.trajectory.program.check_program_samples`, as ``trajectory``).
     ``format``: as :func:`~precontour.toolpath.read_toolpath`'s (None: from the extension)."""
     format = toolpath_format(path, format)
-    if format == "gcode":
-        program = read_program(path, machine, tcp=tcp)
+    if format in PROGRAM_FORMATS:
+        program = read_program(path, machine, tcp=tcp, format=format)
         for text in program.notices:
             notice(text)
         check_program_samples(program, machine, ts=machine.servo_period, dwell=dwell,
@@ -271,7 +273,8 @@ class RunResult:
     @property
     def place(self) -> str:
         """What a place in the source is called: a G-code program's line, CL data's row."""
-        return "line" if toolpath_format(self.source, self.source_format) == "gcode" else "row"
+        return ("line" if toolpath_format(self.source, self.source_format) in PROGRAM_FORMATS
+                else "row")
 
     @property
     def commands(self) -> Trajectory:
