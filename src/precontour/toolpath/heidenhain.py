@@ -393,6 +393,8 @@ class _Heidenhain:
         """Execute G-code words on this block's line; True at the program end."""
         raw = text if text is not None else " ".join(
             w[0] + w[2] for w in words if w[0] in "MSTGF")
+        if not raw and comments and keep:
+            raw = " ".join(_comment(c) for c in comments)   # an M block read away (M127)
         return self.g.execute(words, False, False, raw, comments if keep else [])
 
     # ------------------------------------------------------------------ blocks
