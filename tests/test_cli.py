@@ -443,7 +443,7 @@ def test_format_is_the_same_option_in_trajectory_and_run(capsys):
             parser.parse_args(argv + ["--format", "ngc"])
         assert capsys.readouterr().err.strip().splitlines()[-1] == (
             f"precontour {argv[0]}: error: argument --format: invalid choice: 'ngc' (choose "
-            "from 'clcsv', 'apt', 'gcode')")
+            "from 'clcsv', 'apt', 'gcode', 'heidenhain')")
 
 
 def test_format_reads_a_file_whose_extension_says_none(tmp_path, capsys):

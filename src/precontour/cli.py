@@ -613,8 +613,8 @@ def _add_toolpath_format_option(parser: argparse.ArgumentParser) -> None:
     run): the library's ``read_toolpath(format=..., tool_table=...)``."""
     parser.add_argument("--format", choices=TOOLPATH_FORMATS, default=None,
                         help="format of the tool path file: clcsv (CL-data CSV), apt (APT CL "
-                             "data) or gcode (default: from its extension; needed for .txt "
-                             "and other extensions)")
+                             "data), gcode or heidenhain (TNC conversational) (default: from "
+                             "its extension; needed for .txt and other extensions)")
     parser.add_argument("--tool-table", type=Path, default=None, metavar="FILE",
                         help="G-code: tool lengths from a LinuxCNC tool table (.tbl, Z in "
                              "mm), applied at G43 H, G43.4 H, G234 H (default: the machine "
@@ -818,7 +818,7 @@ def run_predict(args: argparse.Namespace) -> int:
 def run_trajectory(args: argparse.Namespace) -> int:
     from .machine.machine_file import load_machine
     from .tables import check_output_table, trajectory_columns, write_columns
-    from .toolpath import read_program, read_toolpath, toolpath_format
+    from .toolpath import PROGRAM_FORMATS, read_program, read_toolpath, toolpath_format
     from .trajectory.builtin_paths import builtin_path
     from .trajectory.generate import generate_trajectory, summarize, unfed_notice
     from .trajectory.program import program_trajectory
@@ -830,8 +830,8 @@ def run_trajectory(args: argparse.Namespace) -> int:
     ts = machine.servo_period if args.ts is None else args.ts
     if args.builtin:
         toolpath = builtin_path(args.builtin)
-    elif toolpath_format(args.toolpath, args.format) == "gcode":
-        program = read_program(args.toolpath, machine, tcp=args.tcp,
+    elif toolpath_format(args.toolpath, args.format) in PROGRAM_FORMATS:
+        program = read_program(args.toolpath, machine, tcp=args.tcp, format=args.format,
                                tool_table=args.tool_table)
         for notice in program.notices:
             print(f"precontour: {notice}", file=sys.stderr)

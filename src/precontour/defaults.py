@@ -31,7 +31,7 @@ BUILTIN_PATHS: tuple[str, ...] = ("paper", "circle", "cone", "fan")
 # -- tool paths in ----------------------------------------------------------------------------
 #: Tool path formats (``read_toolpath(format=...)``, ``trajectory``/``run --format``); the
 #: reader of each is :mod:`precontour.toolpath.readers`.
-TOOLPATH_FORMATS: tuple[str, ...] = ("clcsv", "apt", "gcode")
+TOOLPATH_FORMATS: tuple[str, ...] = ("clcsv", "apt", "gcode", "heidenhain")
 
 # -- trajectory planning ------------------------------------------------------------------
 #: Default maximum tool tip feed, mm/s (the paper's test path).

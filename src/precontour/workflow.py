@@ -40,7 +40,8 @@ from .simulation.ensemble import MachineEnsemble, ensemble_actual
 from .simulation.virtual_machine import realistic_actual
 from .tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory,
                      trajectory_columns, write_columns, write_text)
-from .toolpath import EXTENSIONS, read_program, read_toolpath_report, toolpath_format
+from .toolpath import (EXTENSIONS, PROGRAM_FORMATS, read_program, read_toolpath_report,
+                       toolpath_format)
 from .toolpath.writers import (GcodeProgram, ProgramInfo, gcode_tolerances, gcode_program,
                                halstreamer_lines, machine_axes_passthrough)
 from .trajectory.generate import generate_trajectory, unfed_notice
@@ -102,7 +103,8 @@ class RunProgram:
 
     @property
     def format(self) -> str:
-        """``"gcode"``, or the CL data's format (``"clcsv"``, ``"apt"``)."""
+        """``"gcode"`` for an NC program (G-code or Heidenhain), or the CL data's format
+        (``"clcsv"``, ``"apt"``)."""
         return "gcode" if self.program is not None else self.toolpath.format
 
 
@@ -115,8 +117,9 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
     ``format``, ``tool_table``: as :func:`~precontour.toolpath.read_toolpath`'s (None: from
     the extension; the machine file's ``[tools]``)."""
     format = toolpath_format(path, format)
-    if format == "gcode":
-        program = read_program(path, machine, tcp=tcp, tool_table=tool_table)
+    if format in PROGRAM_FORMATS:
+        program = read_program(path, machine, tcp=tcp, format=format,
+                               tool_table=tool_table)
         for text in program.notices:
             notice(text)
         check_program_samples(program, machine, ts=machine.servo_period, dwell=dwell,
@@ -280,7 +283,8 @@ class RunResult:
     @property
     def place(self) -> str:
         """What a place in the source is called: a G-code program's line, CL data's row."""
-        return "line" if toolpath_format(self.source, self.source_format) == "gcode" else "row"
+        return ("line" if toolpath_format(self.source, self.source_format) in PROGRAM_FORMATS
+                else "row")
 
     @property
     def commands(self) -> Trajectory:

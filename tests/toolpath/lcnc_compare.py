@@ -34,7 +34,9 @@ DEMOS = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5
              "table-rotary-tilting/demos")
 SYSTEM_PYTHON = "/usr/bin/python3"
 #: Test programs in dialects LinuxCNC does not read (checked by hand in test_gcode.py).
-NOT_LINUXCNC = {"data/fanuc_trunnion.nc": "Fanuc's G43.4 and G68.2, which LinuxCNC does not read"}
+NOT_LINUXCNC = {"data/fanuc_trunnion.nc": "Fanuc's G43.4 and G68.2, which LinuxCNC does not read",
+                "data/haas_fusion_umc750.nc": "Haas's G234 and G254, which LinuxCNC does not read",
+                "data/haas_nx_umc750.nc": "Haas's G234 and G254, which LinuxCNC does not read"}
 INCH = 25.4
 #: LinuxCNC's axis slots X Y Z A B C.
 SLOTS = {"X": 0, "Y": 1, "Z": 2, "A": 3, "B": 4, "C": 5}
@@ -62,7 +64,10 @@ def program_key(path: Path) -> str:
 
 
 def program_machine(path: Path):
-    """The LinuxCNC trunnion simulator the program is for: B-C if it names B, else A-C."""
+    """The LinuxCNC trunnion simulator the program is for: B-C if it names B, else A-C
+    (the Haas programs: their UMC-750 machine file, data/haas-umc750.toml)."""
+    if path.name.startswith("haas_"):
+        return load_machine(DATA / "haas-umc750.toml")
     text = _COMMENTS.sub("", path.read_text(errors="replace").upper())
     name = "linuxcnc-xyzbc-trt" if "xyzbc" in path.name or _B_WORD.search(text) else \
         "linuxcnc-xyzac-trt"

@@ -314,17 +314,13 @@ def test_the_formats_are_the_command_lines(tmp_path):
         toolpath_format("path.nc", "nc")
 
 
-def test_a_heidenhain_program_is_refused_by_its_language(machine, tmp_path):
-    """``.h``: Heidenhain conversational, named so by the extension; read as G-code anyway
-    (format given), its first block says the same."""
-    path = write(tmp_path, "spot.h", "0  BEGIN PGM spot MM\n1  L  Z+15 R0 FMAX\n")
-    with pytest.raises(ToolPathError, match=r"^[^\n]*spot.h: '.h' is the extension of "
-                                            r"Heidenhain TNC conversational programs, which "
-                                            r"precontour does not read; post-process for "
-                                            r"LinuxCNC/Fanuc-style G-code \(if the file is "
-                                            r"G-code after all: --format gcode, or "
-                                            r"format='gcode'\)$"):
-        read_toolpath(path, machine=machine)
+def test_a_heidenhain_program_is_read_by_its_reader(machine, tmp_path):
+    """``.h``: Heidenhain conversational, read by its own reader; read as G-code (format
+    given), its first block is refused as that language."""
+    path = write(tmp_path, "spot.h", "0  BEGIN PGM spot MM\n1  L  X+0 Y+0 Z+15 A+0 C+0 R0 "
+                                     "FMAX\n2  L  Z+5 F100\n3  END PGM spot MM\n")
+    report = read_toolpath_report(path, machine=machine)
+    assert report.format == "heidenhain" and report.toolpath.n_points == 2
     with pytest.raises(ToolPathError, match=r"spot.h, line 1: 'BEGIN PGM' is Heidenhain TNC "
                                             r"conversational syntax"):
         read_toolpath(path, machine=machine, format="gcode")
@@ -333,8 +329,9 @@ def test_a_heidenhain_program_is_refused_by_its_language(machine, tmp_path):
 @pytest.mark.parametrize("name, kwargs, error, match", [
     ("path.txt", {}, ToolPathError, r"path.txt: unknown tool-path extension '.txt'; supported: "
                                     r".csv, .apt, .cls, .cl, .aptsource, .nc, .ngc, .gcode, "
-                                    r".gc, .tap, .mpf, .cnc, .iso \(or give the format, "
-                                    r"--format or format=, one of clcsv, apt, gcode\)"),
+                                    r".gc, .tap, .mpf, .cnc, .iso, .h \(or give the format, "
+                                    r"--format or format=, one of clcsv, apt, gcode, "
+                                    r"heidenhain\)"),
     ("path", {}, ToolPathError, r"unknown tool-path extension '\(none\)'"),
     ("path.apt", {"format": "step"}, InputError, r"field 'format': unknown tool-path format"),
     ("path.nc", {}, ToolPathError, r"path.nc: G-code gives machine-axis positions: reading "

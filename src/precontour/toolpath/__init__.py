@@ -1,6 +1,7 @@
 """Tool paths as programmed: tool tip points and orientations in the workpiece frame.
 
-NC programs (G-code) are read by :func:`read_program` (:mod:`.gcode`) into a
+NC programs (G-code, :mod:`.gcode`; Heidenhain conversational, :mod:`.heidenhain`) are read
+by :func:`read_program` into a
 :class:`~.program.Program` in machine axes, which the trajectory stage times as a CNC does.
 Each reader (one module per file format: :mod:`.clcsv`, :mod:`.apt`, :mod:`.gcode`) returns a
 :class:`ToolPath`; :func:`read_toolpath` picks one by file extension (:mod:`.readers`). The
@@ -48,12 +49,14 @@ class ToolPath:
 from ._common import FEED_UNITS, ReadReport  # noqa: E402
 from .apt import read_apt, read_apt_report  # noqa: E402
 from .clcsv import read_clcsv, read_clcsv_report  # noqa: E402
-from .gcode import read_gcode, read_gcode_report, read_program  # noqa: E402
+from .gcode import read_gcode, read_gcode_report  # noqa: E402
+from .heidenhain import read_heidenhain, read_heidenhain_report  # noqa: E402
 from .program import Program, ProgrammedMoves, Stop  # noqa: E402
-from .readers import (EXTENSIONS, read_toolpath, read_toolpath_report,  # noqa: E402
-                      toolpath_format)
+from .readers import (EXTENSIONS, PROGRAM_FORMATS, read_program, read_toolpath,  # noqa: E402
+                      read_toolpath_report, toolpath_format)
 
 __all__ = ["ToolPath", "ReadReport", "FEED_UNITS", "EXTENSIONS", "read_toolpath",
            "read_toolpath_report", "toolpath_format", "read_clcsv", "read_clcsv_report",
            "read_apt", "read_apt_report", "read_gcode", "read_gcode_report", "read_program",
-           "Program", "ProgrammedMoves", "Stop"]
+           "read_heidenhain", "read_heidenhain_report", "PROGRAM_FORMATS", "Program",
+           "ProgrammedMoves", "Stop"]

@@ -2338,7 +2338,12 @@ def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True,
         machine = load_machine(machine)
     program = read_program(path, machine, tcp=tcp, block_delete=block_delete,
                            tool_table=tool_table)
-    kinematics = _kinematics(machine)
+    return program_report(program, _kinematics(machine))
+
+
+def program_report(program: Program, kinematics, format: str = "gcode") -> ReadReport:
+    """A :class:`~precontour.toolpath.program.Program` seen as a tool path (see
+    :func:`read_gcode_report`); also the view of the other NC languages' readers."""
     q = program.points
     P, O = kinematics.forward(q)
     feed = np.concatenate([[np.nan], program.feed])
@@ -2350,5 +2355,5 @@ def read_gcode_report(path: str | Path, machine, *, block_delete: bool = True,
         feed[1:][timed & ~(feed[1:] > 0)] = np.nan
     lines = np.concatenate([[program.start_line], program.line])
     rapid = np.concatenate([[True], program.rapid])
-    return finish(P, O, feed, lines=lines, source=program.source, format="gcode",
+    return finish(P, O, feed, lines=lines, source=program.source, format=format,
                   empty="no motion", rapid=rapid, skipped=program.skipped, axes=q)
