@@ -129,8 +129,9 @@ def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
     that error, so the search stops slowing there (planning.tolerance.FUTILE_SLOWING;
     measured: 46.8 um at line 11 at 20.1 % of the plan's speed, the baseline 9.83 s; slowed
     on to 3.4 % before that rule, 49.6 um at line 10, 11.32 s), and the misses name the
-    lines. The upper-bound plan is shorter than the programmed one (3.30 s): the feed scale
-    applies to the G-code feeds.
+    lines. The upper-bound plan is shorter than the programmed one (measured 3.46 s against
+    3.90 s since the planner keeps the axis limits by re-timing; 3.30 s against 3.88 s when it
+    slowed whole blocks): the feed scale applies to the G-code feeds.
     The rapid's errors are not counted."""
     source = tmp_path / "stop.ngc"
     source.write_text(PROGRAM)
@@ -140,7 +141,7 @@ def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
                          contour_tolerance=tolerance, feed_scale_max=1.5)
     write_run_outputs(result, outputs, [source])
     feed = result.feed
-    assert feed.planned.duration < feed.programmed.duration - 0.5
+    assert feed.planned.duration < feed.programmed.duration - 0.3
     assert feed.compensated.met and feed.compensated.draws == 5
     tip, ori = resimulated_worst(outputs.commands, result.machine, "pid-high",
                                  MachineEnsemble(), rapid_lines=[8])
