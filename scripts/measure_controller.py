@@ -41,7 +41,7 @@ from precontour.cli import main  # noqa: E402
 from precontour.toolpath import read_program  # noqa: E402
 from precontour.toolpath.linuxcnc_run import linuxcnc_unavailable  # noqa: E402
 
-from closed_loop_measure import errors, late, read_log  # noqa: E402
+from closed_loop_measure import errors, late, read_log, worse_lines  # noqa: E402
 from lcnc_fixtures import DEMOS  # noqa: E402
 
 IMPELLER = DEMOS / "impeller-7bl-xyzac.ngc"
@@ -123,14 +123,18 @@ def bench_case(name: str, machine_name: str, program: Path, work: Path,
         rows.append(("overlay, predicted" if k == 0 else f"overlay, `--learn-from` {k}",
                      read_log(work / f"ovrun{k}.csv", letters)))
     base_tip, base_ori = errors(timing, timing, moves, machine.kinematics)
+    again = rows[1][1]
     table = []
     for label, log in rows:
         tip, ori = errors(timing, log, moves, machine.kinematics)
         periods = late(timing, log, moves)
+        worse = worse_lines(timing, again, log, moves, machine.kinematics)
+        worse_all = worse_lines(timing, again, log, moves, machine.kinematics, settle=0.0)
         table.append([name, label, f"{tip.max():.2f}", f"{tip.mean():.3f}",
                       f"{100 * tip.mean() / base_tip.mean():.0f} %", f"{ori.max():.3f}",
                       f"{ori.mean():.4f}", f"{np.abs(periods).max()}",
-                      f"{int(np.sum(np.abs(periods) > 1))} of {periods.size}"])
+                      f"{int(np.sum(np.abs(periods) > 1))} of {periods.size}",
+                      f"{len(worse)} / {len(worse_all)}"])
     if cl_data is not None:
         # run as before --timing: compensated for precontour's own plan, written as new G93
         # blocks, which LinuxCNC re-times (its blocks are not the program's: no block offsets)
@@ -142,7 +146,7 @@ def bench_case(name: str, machine_name: str, program: Path, work: Path,
         table.append([name, "`run` without `--timing` (its own plan, new G93 blocks; "
                       "machine file's pid-high model)", f"{tip.max():.2f}", f"{tip.mean():.3f}",
                       f"{100 * tip.mean() / base_tip.mean():.0f} %", f"{ori.max():.3f}",
-                      f"{ori.mean():.4f}", "–", "–"])
+                      f"{ori.mean():.4f}", "–", "–", "–"])
     print(f"  {name}: {time.perf_counter() - started:.0f} s", file=sys.stderr)
     return table
 
@@ -150,7 +154,7 @@ def bench_case(name: str, machine_name: str, program: Path, work: Path,
 def page(tables: list[list], notes: list[str]) -> str:
     header = ["program", "commands", "tip max µm", "tip mean µm", "mean of uncompensated",
               "ori max mrad", "ori mean mrad", "blocks: largest offset, periods",
-              "blocks > 1 period off"]
+              "blocks > 1 period off", "lines worse: from 0.3 s / from the first move"]
     rows = [row for table in tables for row in table]
     return "\n".join([
         "# Measured on LinuxCNC's closed loop",
@@ -165,10 +169,14 @@ def page(tables: list[list], notes: list[str]) -> str:
         "run's commanded path, from 0.3 s after the first move to the end of the commanded "
         "motion. Block offsets: servo periods each block started off the uncompensated run's "
         "(LinuxCNC's `motion.program-line`). Learning: each `--learn-from` iteration learns "
-        "from the run of the row above it (`--repeat` the second uncompensated run). How: "
+        "from the run of the row above it (`--repeat` the second uncompensated run). Lines "
+        "worse: program lines whose tip or orientation max (the same measure, per line) is "
+        "above the uncompensated run's by more than 0.1 um / 1 urad or 5 % of it, or than "
+        "the line's difference between the two uncompensated runs, counted from 0.3 s after "
+        "the first move as the rest of the table, and from the first move. How: "
         "[On a real controller](controller.md).",
         "",
-        markdown_table(header, rows, "llrrrrrrr"),
+        markdown_table(header, rows, "llrrrrrrrr"),
         "",
         *notes,
         "",

@@ -29,17 +29,18 @@ def read_log(path, letters="XYZAC"):
     return q, actual, columns["line"].astype(int)
 
 
-def errors(reference, run, moves, kinematics):
+def errors(reference, run, moves, kinematics, settle=SETTLE, *, with_lines=False):
     """Tip (um) and orientation (mrad) errors of ``run``'s actual positions against the
-    commanded path of ``reference`` (the uncompensated run), from SETTLE after the first
-    move's start to the end of the commanded motion: the distance of each actual tip to the
-    commanded tip polyline, and the angle between the actual orientation and the closest
-    commanded one near the tip's closest sample."""
+    commanded path of ``reference`` (the uncompensated run), from ``settle`` (s) after the
+    first move's start to the end of the commanded motion: the distance of each actual tip to
+    the commanded tip polyline, and the angle between the actual orientation and the closest
+    commanded one near the tip's closest sample. ``with_lines``: also the program line
+    ``run`` was executing at each of those samples."""
     q0, _, line0 = reference
     q, actual, line = run
     start0 = block_starts(line0, moves.line)[0]
     P_ref, O_ref = kinematics.forward(q0[start0:])
-    start = block_starts(line, moves.line)[0] + int(SETTLE / 1e-3)
+    start = block_starts(line, moves.line)[0] + int(settle / 1e-3)
     moving = np.flatnonzero(np.any(np.diff(q, axis=0) != 0, axis=1))
     P, O = kinematics.forward(actual[start:moving[-1] + 1])
     _, i = cKDTree(P_ref).query(P)
@@ -70,7 +71,42 @@ def errors(reference, run, moves, kinematics):
         point /= np.linalg.norm(point, axis=1, keepdims=True)
         best = np.maximum(best, np.einsum("ij,ij->i", O, point))
     orientation = np.arccos(np.clip(best, -1.0, 1.0))
+    if with_lines:
+        return 1e3 * tip, 1e3 * orientation, line[start:moving[-1] + 1]
     return 1e3 * tip, 1e3 * orientation
+
+
+def line_maxima(tip, orientation, line):
+    """{program line: (tip max, orientation max)} over the samples executing it."""
+    order = np.argsort(line, kind="stable")
+    ordered = line[order]
+    first = np.concatenate([[0], np.flatnonzero(np.diff(ordered)) + 1])
+    return {int(ordered[i]): (float(a), float(b)) for i, a, b in
+            zip(first, np.maximum.reduceat(tip[order], first),
+                np.maximum.reduceat(orientation[order], first)) if ordered[i] > 0}
+
+
+def worse_lines(reference, again, run, moves, kinematics, settle=SETTLE):
+    """Program lines on which ``run`` is worse than ``reference`` (the uncompensated run) in
+    tip or orientation max beyond the margins precontour judges by (0.1 um or 1 urad, or
+    5 % of the line's uncompensated max) or beyond the line's repeatability (its difference
+    between ``reference`` and ``again``, a second uncompensated run), whichever is larger,
+    measured by :func:`errors` from ``settle`` after the first move's start."""
+    base = line_maxima(*errors(reference, reference, moves, kinematics, settle,
+                               with_lines=True))
+    repeat = line_maxima(*errors(reference, again, moves, kinematics, settle,
+                                 with_lines=True))
+    ours = line_maxima(*errors(reference, run, moves, kinematics, settle, with_lines=True))
+    worse = []
+    for number, (tip, ori) in sorted(ours.items()):
+        if number not in base:
+            continue
+        b_tip, b_ori = base[number]
+        r_tip, r_ori = repeat.get(number, base[number])
+        if (tip > b_tip + max(0.1, 0.05 * b_tip, abs(r_tip - b_tip))
+                or ori > b_ori + max(1e-3, 0.05 * b_ori, abs(r_ori - b_ori))):
+            worse.append(number)
+    return worse
 
 
 def late(reference, run, moves):
