@@ -6,7 +6,10 @@ the trajectory's samples, independently of the planner:
 
 - from every programmed point to the polyline through the samples (how far the blend of a
   corner passes from the corner), as a fraction of that point's tolerance;
-- from every sample to the programmed polyline (how far the trajectory leaves the path).
+- from every sample to the programmed polyline (how far the trajectory leaves the path);
+- at every programmed point, the least angle between the planned and the programmed tool
+  orientation where the planned tip (TCP) or linear axes are within the point's tolerance
+  (the corner passed as a pose, ``--corner-ori-tol``).
 
 Both are measured where the tolerance applies: at the tool tip (the direct kinematics of the
 joint commands) for TCP moves, in the linear axes otherwise. Programs: LinuxCNC's five-axis
@@ -29,7 +32,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from docpage import DOCS, ROOT, markdown_table, replace_section, stamp
-from precontour.defaults import DEFAULT_CORNER_TOLERANCE
+from precontour.defaults import (DEFAULT_CORNER_ORIENTATION_TOLERANCE,
+                                 DEFAULT_CORNER_TOLERANCE)
 from precontour.errors import PrecontourError
 from precontour.machine.machine_file import load_machine
 from precontour.toolpath import read_program
@@ -77,9 +81,40 @@ def to_polyline(x, polyline, piece=0.2, k=16):
     return best
 
 
+def orientation_errors(points, orientations, path, path_orientations, tolerance):
+    """Per programmed point, the least angle (rad) between the orientation along the
+    polyline of the samples (tip or linear axes ``path``, orientation ``path_orientations``,
+    both linear between samples) and the programmed one, where the polyline is within the
+    point's ``tolerance``; NaN where it never is."""
+    tree = cKDTree(path)
+    out = np.full(len(points), np.nan)
+    for i, found in enumerate(tree.query_ball_point(points, tolerance + 0.5)):
+        if not found:
+            continue
+        k = np.asarray(found)
+        k = np.unique(np.clip(np.concatenate([k, k - 1]), 0, len(path) - 2))
+        a, b = path[k] - points[i], path[k + 1] - path[k]
+        c, d = path_orientations[k] - orientations[i], path_orientations[k + 1] - \
+            path_orientations[k]
+        bb, ab, aa = (b * b).sum(1), (a * b).sum(1), (a * a).sum(1)
+        # the stretch of each segment within the tolerance, and the orientation's least there
+        root = np.sqrt(np.maximum(ab * ab - bb * (aa - tolerance[i] ** 2), 0.0))
+        dd = (d * d).sum(1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lo = np.clip(np.where(bb > 0, (-ab - root) / bb, 0.0), 0, 1)
+            hi = np.clip(np.where(bb > 0, (-ab + root) / bb, 1.0), 0, 1)
+            u = np.clip(np.where(dd > 0, -(c * d).sum(1) / dd, 0.0), lo, hi)
+        inside = np.linalg.norm(a + u[:, None] * b, axis=1) <= tolerance[i] * (1 + 1e-9)
+        if inside.any():
+            chord = np.linalg.norm(c + u[:, None] * d, axis=1)[inside].min()
+            out[i] = 2.0 * np.arcsin(min(1.0, chord / 2.0))
+    return out
+
+
 def measure(path: Path, machine_name: str, tcp: bool):
     """(points, worst point / tolerance, its line, largest point distance mm, largest sample
-    distance mm or None, duration s), or None where precontour refuses the program."""
+    distance mm or None, duration s, worst orientation rad and its line), or None where
+    precontour refuses the program."""
     machine = load_machine(machine_name)
     try:
         program = read_program(path, machine, tcp=tcp)
@@ -92,7 +127,7 @@ def measure(path: Path, machine_name: str, tcp: bool):
     at_point = np.minimum(np.concatenate([tolerance[:1], tolerance]),
                           np.concatenate([tolerance, tolerance[-1:]]))
     tcp_point = np.concatenate([program.tcp_move[:1], program.tcp_move])
-    tips = machine.kinematics.forward(program.points)[0]
+    tips, orientations = machine.kinematics.forward(program.points)
     distance = np.zeros(len(tips))
     if tcp_point.any():
         distance[tcp_point] = to_polyline(tips[tcp_point], traj.P)
@@ -107,8 +142,18 @@ def measure(path: Path, machine_name: str, tcp: bool):
         leave = float(to_polyline(traj.P, tips).max())
     elif not program.tcp_move.any():
         leave = float(to_polyline(traj.q[:, :3], program.points[:, :3]).max())
+    # the orientation where the tip (TCP) or the linear axes are within the tolerance (a
+    # point with none, G61: the path passes it exactly), each point in its own frame
+    angle = np.zeros(len(tips))
+    tolerance_at = np.maximum(at_point, 1e-9)
+    for frame, points, path in ((tcp_point, tips, traj.P),
+                                (~tcp_point, program.points[:, :3], traj.q[:, :3])):
+        if frame.any():
+            angle[frame] = orientation_errors(points[frame], orientations[frame], path, traj.O,
+                                              tolerance_at[frame])
+    turned = int(np.argmax(np.nan_to_num(angle, nan=np.inf)))
     return (len(tips), float(ratio[worst]), int(lines[worst]), float(distance.max()), leave,
-            traj.duration)
+            traj.duration, float(angle[turned]), int(lines[turned]))
 
 
 def cases():
@@ -130,23 +175,28 @@ def section() -> str:
         result = measure(path, machine, tcp)
         if result is None:
             continue
-        n, ratio, line, largest, leave, duration = result
+        n, ratio, line, largest, leave, duration, angle, angle_line = result
         print(f"{label}: {ratio:.3f} of the tolerance at line {line}", file=sys.stderr)
         rows.append([f"`{label}`", machine + (" `--tcp`" if tcp else ""), f"{n:,}",
                      f"{duration:,.1f} s", f"{100 * ratio:.1f} % (line {line})",
-                     f"{1e3 * largest:.2f}", "—" if leave is None else f"{1e3 * leave:.2f}"])
+                     f"{1e3 * largest:.2f}", "—" if leave is None else f"{1e3 * leave:.2f}",
+                     f"{1e3 * angle:.3f} (line {angle_line})"])
     lines = ["## Corner tolerance, measured", "", stamp(), "",
              "Each program timed as `precontour trajectory` times it (corner tolerance "
              f"{DEFAULT_CORNER_TOLERANCE:g} mm, or the program's `G64 P`); distances measured "
              "on the samples, at the tool tip for TCP moves and in the linear axes otherwise: "
              "from each programmed point to the polyline through the samples (the largest as "
              "a share of that point's tolerance, and in um), and from each sample to the "
-             "programmed polyline (— where TCP and joint moves mix). Programs precontour "
-             "refuses are left out.", ""]
+             "programmed polyline (— where TCP and joint moves mix); and the largest, over "
+             "the programmed points, of the least angle between the planned and programmed "
+             "tool orientation where the point is within its tolerance (orientation "
+             f"tolerance {DEFAULT_CORNER_ORIENTATION_TOLERANCE:g} rad, `--corner-ori-tol`). "
+             "Programs precontour refuses are left out.", ""]
     lines.append(markdown_table(
         ["program", "machine", "points", "duration", "worst point / tolerance",
-         "largest point distance, um", "largest sample distance, um"],
-        rows, "llrrlrr"))
+         "largest point distance, um", "largest sample distance, um",
+         "worst orientation at a point, mrad"],
+        rows, "llrrlrrl"))
     return "\n".join(lines)
 
 

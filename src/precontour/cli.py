@@ -25,7 +25,8 @@ from pathlib import Path
 from . import __version__
 from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS, DEFAULT_CHECK_DRAWS,
                        COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
-                       DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL, DEFAULT_FEED,
+                       DEFAULT_CORNER_ORIENTATION_TOLERANCE, DEFAULT_CORNER_TOLERANCE,
+                       DEFAULT_DWELL, DEFAULT_FEED,
                        DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
                        DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
                        GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, TOOLPATH_FORMATS,
@@ -666,6 +667,15 @@ def _add_planning_options(parser: argparse.ArgumentParser) -> None:
                              "two blocks may leave the programmed path, where the program sets "
                              "none (G64 P, G61); sharper corners are slowed for, or stopped at "
                              f"(default {DEFAULT_CORNER_TOLERANCE:g} mm)")
+    parser.add_argument("--corner-ori-tol", type=_positive_float,
+                        default=DEFAULT_CORNER_ORIENTATION_TOLERANCE, metavar="RAD",
+                        help="G-code: largest angle between the tool orientation and the "
+                             "programmed one where the blend of a corner passes within "
+                             "--corner-tol of it (the corner is passed as a pose, so a rotation "
+                             "does not start before the tip is there); corners that need it are "
+                             "slowed for, or stopped at (default "
+                             f"{DEFAULT_CORNER_ORIENTATION_TOLERANCE:g} rad, the rotary "
+                             "decimation tolerance of --tol)")
     parser.add_argument("--max-samples", type=_positive_int, default=None, metavar="N",
                         help="refuse a trajectory of more samples, estimated before any is "
                              "made (default: sized to this machine's memory, "
@@ -837,6 +847,7 @@ def run_trajectory(args: argparse.Namespace) -> int:
             print(f"precontour: {notice}", file=sys.stderr)
         traj = program_trajectory(program, machine, ts=ts, dwell=args.dwell,
                                   tolerance=args.corner_tol,
+                                  orientation_tolerance=args.corner_ori_tol,
                                   max_samples=args.max_samples or default_max_samples())
         print(f"program {args.toolpath}: {program.n_moves} move(s) ({int(program.rapid.sum())} "
               f"rapid), {len(program.stops)} stop(s), {len(program.passthrough)} pass-through "
@@ -1157,7 +1168,9 @@ def run_run(args: argparse.Namespace) -> int:
     try:
         result = run_program(args.program, outputs, machine=args.machine,
                              controller=args.controller, tcp=args.tcp, dwell=args.dwell,
-                             corner_tolerance=args.corner_tol, max_samples=args.max_samples,
+                             corner_tolerance=args.corner_tol,
+                             corner_orientation_tolerance=args.corner_ori_tol,
+                             max_samples=args.max_samples,
                              iterations=args.iterations, tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
                              limits=LimitOptions(min_speed=args.min_speed),

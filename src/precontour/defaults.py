@@ -96,6 +96,11 @@ DEFAULT_LEARNING_PASSES = 4
 #: Default decimation tolerances: 1 um on X, Y, Z and 1e-5 rad on A, C (``--tol 0.001,1e-5``).
 GCODE_TOL_LINEAR = 1e-3
 GCODE_TOL_ROTARY = 1e-5
+#: Default orientation tolerance of a G-code program's corners, rad (``--corner-ori-tol``):
+#: where the blend of a corner passes within the corner tolerance of it at the tool tip (or
+#: the linear axes), the tool orientation there is within this of the programmed one. The
+#: rotary decimation tolerance: what an output program keeps the rotary axes within.
+DEFAULT_CORNER_ORIENTATION_TOLERANCE = GCODE_TOL_ROTARY
 #: Formats of ``precontour export``.
 EXPORT_FORMATS: tuple[str, ...] = ("gcode", "halstreamer", "csv", "npz", "parquet")
 

@@ -27,7 +27,8 @@ from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.segments import learn_by_segments
 from .compensation.within_limits import (LimitedCompensation,
                                          compensate_within_limits, learn_within_limits)
-from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
+from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
+                       DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
                        DEFAULT_FEED, EXPORT_FORMATS, default_max_samples)
 from .errors import InputError, MachineLimitError, ToleranceError, is_whole_number, notice
 from .files import OutputSet, check_signals
@@ -65,6 +66,8 @@ Progress = Callable[[int, int, str], None]
 def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = False,
                             dwell: float = DEFAULT_DWELL,
                             corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                            corner_orientation_tolerance: float | None =
+                            DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                             max_samples: int | None = None, format: str | None = None,
                             tool_table=None
                             ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
@@ -79,7 +82,8 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     the whole program in tool centre point mode. CL data (CSV, APT) gives the tool tip
     already: it goes through :func:`~precontour.trajectory.generate.generate_trajectory`, its
     samples carry the file line of the CL point they move to, and it has no lines to keep.
-    ``dwell``, ``corner_tolerance`` (G-code only) and ``max_samples`` (default
+    ``dwell``, ``corner_tolerance``, ``corner_orientation_tolerance`` (G-code only) and
+    ``max_samples`` (default
     :func:`~precontour.defaults.default_max_samples`) are the planning options of the
     ``trajectory`` command. ``format``: the file's format, instead of the one its extension
     says (:func:`~precontour.toolpath.read_toolpath`'s); ``tool_table``: tool lengths for
@@ -88,6 +92,7 @@ def load_program_trajectory(path: str | Path, machine: Machine, *, tcp: bool = F
     source = read_run_program(path, machine, tcp=tcp, dwell=dwell, max_samples=max_samples,
                               format=format, tool_table=tool_table)
     return plan_run_program(source, machine, dwell=dwell, corner_tolerance=corner_tolerance,
+                            corner_orientation_tolerance=corner_orientation_tolerance,
                             max_samples=max_samples)
 
 
@@ -140,6 +145,8 @@ def read_run_program(path: str | Path, machine: Machine, *, tcp: bool = False,
 
 def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEFAULT_DWELL,
                      corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                     corner_orientation_tolerance: float | None =
+                     DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                      max_samples: int | None = None, feed_scale: float = 1.0
                      ) -> tuple[Trajectory, Sequence[tuple[int, str]] | None]:
     """The planned trajectory of a program read by :func:`read_run_program`, and its
@@ -161,6 +168,7 @@ def plan_run_program(source: RunProgram, machine: Machine, *, dwell: float = DEF
                                                tcp_all=source.tcp)
         return program_trajectory(program, machine, ts=machine.servo_period, dwell=dwell,
                                   tolerance=corner_tolerance,
+                                  orientation_tolerance=corner_orientation_tolerance,
                                   max_samples=max_samples), passthrough
     report = source.toolpath
     toolpath = report.toolpath
@@ -457,6 +465,8 @@ def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> Outp
 def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machine: str | Path,
                 controller: str, tcp: bool = False, dwell: float = DEFAULT_DWELL,
                 corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                corner_orientation_tolerance: float | None =
+                DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                 max_samples: int | None = None, iterations: int = 1,
                 tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int | LearningOptions = 0,
@@ -472,7 +482,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
     and ``controller`` have no default: a program compensated for another machine than the
-    user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``, ``max_samples``:
+    user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``,
+    ``corner_orientation_tolerance``, ``max_samples``:
     planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
     of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s);
     ``tool_table``: G-code tool lengths (as :func:`load_program_trajectory`'s).
@@ -523,6 +534,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
         write_anyway=write_anyway)
     return _run_program(program, outputs, machine=machine, controller=controller, tcp=tcp,
                         dwell=dwell, corner_tolerance=corner_tolerance,
+                        corner_orientation_tolerance=corner_orientation_tolerance,
                         max_samples=max_samples, iterations=iterations, tolerance=tolerance,
                         progress=progress, workers=workers, learning=learning,
                         ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
@@ -530,6 +542,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
 
 
 def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
+                 corner_orientation_tolerance,
                  max_samples, iterations, tolerance, progress, workers,
                  learning: LearningOptions, ensemble, limits: LimitOptions,
                  feed_options: ToleranceOptions, draws: int, format: str | None,
@@ -566,6 +579,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     step(0, f"plan {program}")
     planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
                                             corner_tolerance=corner_tolerance,
+                                            corner_orientation_tolerance=(
+                                                corner_orientation_tolerance),
                                             max_samples=max_samples)
     line = getattr(planned, "line", None)
     timings["plan"] = time.perf_counter() - start
@@ -588,6 +603,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             step(1, f"plan {program} at {feed_scale_max:g} x the programmed feed")
             planned = plan_run_program(source, machine_obj, dwell=dwell,
                                        corner_tolerance=corner_tolerance,
+                                       corner_orientation_tolerance=(
+                                           corner_orientation_tolerance),
                                        max_samples=max_samples, feed_scale=feed_scale_max)[0]
             line = getattr(planned, "line", None)
         def learned(limited):

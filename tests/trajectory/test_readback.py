@@ -49,11 +49,14 @@ def point_to_path(points, path):
 
 
 def test_run_output_reads_back_in_its_own_time(readback):
+    """The filters' start-up and run-out (a few ms) and the local slow-downs: within 1.5 %
+    of 60/F. Measured 6.079 s until the corners kept the tool orientation within its own
+    tolerance (``--corner-ori-tol``, 1e-5 rad) as well; that slows a few corners more, to
+    6.091 s, 1.01 % over 60/F (the former bound, 1 %, was 6.090 s)."""
     program, traj = readback
     programmed = float(np.nansum(program.duration))     # the blocks' 60/F
     assert programmed == pytest.approx(6.030, abs=1e-6)   # the header's "6.030 s of motion"
-    # the filters' start-up and run-out (a few ms) and the local slow-downs: within 1 %
-    assert programmed <= traj.duration <= 1.01 * programmed
+    assert programmed <= traj.duration <= 1.015 * programmed
 
 
 def test_run_output_within_the_machine_limits(readback, machine):
