@@ -36,6 +36,7 @@ DEFAULT_RUNS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("readers", ()),
     ("program", ()),
     ("run", ("4",)),
+    ("nearest", ()),
 )
 
 INTRO = """# Speed, measured

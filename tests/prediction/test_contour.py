@@ -99,7 +99,7 @@ def test_reference_needed():
 
 def test_nearest_sample_and_isolation_match_brute_force():
     # a path that doubles back on itself within the search window (hairpins 0.1 mm apart):
-    # where the samples around the nearest one are not isolated the scan must decide
+    # where the samples around the nearest one are not isolated the tree search must decide
     from precontour.prediction import contour
 
     rng = np.random.default_rng(7)
@@ -107,7 +107,7 @@ def test_nearest_sample_and_isolation_match_brute_force():
     x = 0.5 * np.sin(2 * np.pi * 12 * t)                 # back and forth, 24 turns
     P = np.stack([x, 0.1 * np.floor(24 * t), np.zeros_like(t)], axis=1)
     ref = ReferencePath.from_samples(t, P, np.tile([0.0, 0.0, 1.0], (t.size, 1)))
-    _, _, samples, chord = ref._tip_arrays
+    _, _, samples, tree = ref._tip_arrays
     base, lo, hi = ref._own_windows
     isolated, lower, upper = ref._tip_isolation
     for block in rng.choice(isolated.size, 60, replace=False):
@@ -118,7 +118,7 @@ def test_nearest_sample_and_isolation_match_brute_force():
         assert isolated[block] == pytest.approx(expected, rel=1e-12)
     points = P + rng.normal(0, 0.05, P.shape)
     for i in rng.choice(t.size, 300, replace=False):
-        k = contour._nearest_sample(samples, chord, ref._tip_isolation, points[i], base[i],
+        k = contour._nearest_sample(samples, tree, ref._tip_isolation, points[i], base[i],
                                     lo[i], hi[i])
         distances = np.linalg.norm(samples[lo[i]:hi[i] + 1] - points[i], axis=1)
         assert lo[i] <= k <= hi[i]
@@ -126,8 +126,8 @@ def test_nearest_sample_and_isolation_match_brute_force():
 
 
 def test_nearest_sample_on_a_creeping_stretch_matches_brute_force():
-    """A reference that creeps (steps of 3e-10 mm, below the scan's round-off margin) and
-    rests exactly, as a heavily slowed program does at its stops: the nearest sample of points
+    """A reference that creeps (steps of 3e-10 mm, within the round-off of its chord length)
+    and rests exactly, as a heavily slowed program does at its stops: the nearest sample of points
     near it and the contour errors are those of a brute-force search over the window."""
     from precontour.prediction import contour
 
@@ -147,13 +147,13 @@ def test_nearest_sample_on_a_creeping_stretch_matches_brute_force():
     P = np.stack([s, 0.2 * np.sin(s / 10), np.zeros(n)], axis=1)
     O = np.tile([0.0, 0.0, 1.0], (n, 1))
     ref = ReferencePath.from_samples(t, P, O)
-    _, _, samples, chord = ref._tip_arrays
+    _, _, samples, tree = ref._tip_arrays
     base, lo, hi = ref._own_windows
     points = P + rng.normal(0, 1e-3, P.shape)
     picks = np.concatenate([rng.choice(np.arange(5_500, 16_500), 400, replace=False),
                             rng.choice(n, 100, replace=False)])
     for i in picks:
-        k = contour._nearest_sample(samples, chord, ref._tip_isolation, points[i], base[i],
+        k = contour._nearest_sample(samples, tree, ref._tip_isolation, points[i], base[i],
                                     lo[i], hi[i])
         distances = np.linalg.norm(samples[lo[i]:hi[i] + 1] - points[i], axis=1)
         assert lo[i] <= k <= hi[i]
@@ -168,21 +168,3 @@ def test_nearest_sample_on_a_creeping_stretch_matches_brute_force():
         h = np.linalg.norm(np.diff(curve, axis=0), axis=1).max()
         assert err.tip[i] <= dense + 1e-12
         assert err.tip[i] >= dense - 1.5 * h**2 / (8 * dense) - 1e-12
-
-
-@pytest.mark.parametrize("direction", [1, -1])
-def test_first_reaching_moves_past_its_start_at_the_window_edge(direction):
-    """The scan's gallop from the window's last sample: a target within round-off of that
-    sample's chord length (a reach below its last digit, as on a stretch at rest) is beyond
-    the window, not "reached" at the start, or the scan never moves on. Measured: a
-    371,156-sample piece of LinuxCNC's boat example, orientation at rest for 1,355 samples
-    of a window, hung in run --learn and run --tolerance; now 1.7 s."""
-    from precontour.prediction import contour
-
-    chord = np.array([0.0, 1.0, 22.73889240841357, 22.73889240841357, 23.0, 24.0])
-    j = 2 if direction < 0 else 3
-    for first_reaching in (contour._first_reaching.py_func, contour._first_reaching):
-        assert first_reaching(chord, j, direction, j, chord[j]) == j + direction
-        # within the window the first sample at or past the target, as before
-        assert first_reaching(chord, 0, 1, 5, 22.7) == 2
-        assert first_reaching(chord, 5, -1, 0, 1.5) == 1

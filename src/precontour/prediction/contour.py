@@ -48,7 +48,9 @@ _CHUNK = 4096
 # inlines them (forceinline), not numba (inline="always"), which types and compiles a copy of
 # the helper at each call site: all of it inlined by numba, in a parallel loop, took 27 s to
 # compile, now 3 s. _distance is numba-inlined: called with a constant, it would be compiled
-# once more for that value.
+# once more for that value. The capsule tree (_capsule_tree, _tree_nearest) added 0.8 s
+# of compilation, measured on an empty cache (the same with _tree_nearest not inlined; 5 %
+# faster inlined where it is needed).
 
 
 @dataclass(frozen=True)
@@ -198,13 +200,13 @@ class ReferencePath:
 
     @cached_property
     def _tip_isolation(self):
-        _, _, samples, chord = self._tip_arrays
-        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
+        _, _, samples, tree = self._tip_arrays
+        return _isolation(samples, tree, *self._own_windows[1:], ISOLATION_SPAN)
 
     @cached_property
     def _orientation_isolation(self):
-        _, _, samples, chord = self._orientation_arrays
-        return _isolation(samples, chord, *self._own_windows[1:], ISOLATION_SPAN)
+        _, _, samples, tree = self._orientation_arrays
+        return _isolation(samples, tree, *self._own_windows[1:], ISOLATION_SPAN)
 
     @cached_property
     def progress(self) -> np.ndarray:
@@ -234,7 +236,7 @@ class ReferencePath:
     def _search(self, start, window, window_length, points, kind):
         """Closest parameter in each window, the distance there (mm or rad) and the closest
         curve point: the nearest reference sample in the window
-        (an exact scan that skips what the triangle inequality rules out), refined by
+        (exact: what the triangle inequality rules out is skipped), refined by
         Newton's method on the spline; the refined point is kept unless the sample itself is
         nearer. Compiled, one sample per iteration, spread over the available cores."""
         start = self.t if start is None else np.asarray(start, dtype=float)
@@ -243,11 +245,11 @@ class ReferencePath:
             base, lo, hi = self._own_windows    # the usual case: searched at its own samples
         else:
             base, lo, hi = self._window(start, window, window_length)
-        breaks, coef, samples, chord = (self._tip_arrays if kind == _TIP
+        breaks, coef, samples, tree = (self._tip_arrays if kind == _TIP
                                         else self._orientation_arrays)
         isolation = self._tip_isolation if kind == _TIP else self._orientation_isolation
         points = np.ascontiguousarray(points, dtype=float)
-        return _closest_parameters(kind, self.t, samples, chord, isolation, breaks, coef,
+        return _closest_parameters(kind, self.t, samples, tree, isolation, breaks, coef,
                                    points, base, lo, hi)
 
 
@@ -262,9 +264,9 @@ def contour_errors(reference: ReferencePath, q_act: np.ndarray, kinematics,
 def _curve_arrays(breaks: np.ndarray, coef: np.ndarray, samples: np.ndarray):
     """What the compiled search needs of a reference curve: the pieces of both curves
     (:attr:`ReferencePath._pieces`; the search takes its curve's three of their six
-    dimensions), the samples and their cumulative chord length."""
-    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(samples, axis=0), axis=1))])
-    return breaks, coef, np.ascontiguousarray(samples), chord
+    dimensions), the samples and their capsule tree (:func:`_capsule_tree`)."""
+    samples = np.ascontiguousarray(samples)
+    return breaks, coef, samples, _capsule_tree(samples)
 
 
 @jit(forceinline=True)
@@ -331,37 +333,249 @@ def _distance(kind, values, row, point):
 
 @jit(forceinline=True)
 def _chord(samples, k, point):
+    # (the capsule tree's centre distance is this same expression: an exactly resting node is
+    # decided by it bit for bit)
     s = 0.0
     for d in range(3):
         s += (samples[k, d] - point[d]) ** 2
     return np.sqrt(s)
 
 
+#: Samples per leaf of the capsule tree (:func:`_capsule_tree`), and per block of the isolation
+#: (:func:`_isolation`); a block's core is the block and one sample either side.
+ISOLATION_BLOCK = 8
+#: A block's isolation is taken over the search windows of its samples and of this many
+#: samples either side, so that it serves any point whose window lies within those.
+ISOLATION_SPAN = 4
+#: Steps of the walk downhill from the time-corresponding sample before the isolation test.
+#: Where the reference nearly rests and the actual lags along it, the walk would cross the
+#: whole window one sample at a time (up to 2 MAX_WINDOW_FACTOR time windows: 2,000 samples
+#: at 1 kHz); beyond this many steps the capsule tree finds the nearest sample instead.
+DESCENT_STEPS = 32
+#: Round-off allowance of the capsule tree, relative to the size of each distance computed
+#: (:func:`_to_segment`): radii are enlarged by it when built and a capsule is ruled out only
+#: by this much more than its distance bound (each is computed to a few units of 1e-16), so
+#: nothing the brute-force comparison would pick is ever ruled out.
+CAPSULE_SLACK = 1e-14
+#: Entries of the tree search's stack: a depth-first search holds at most two per level.
+_STACK = 128
+
+
+def _capsule_tree(samples: np.ndarray):
+    """Capsules around the samples, per level: a node is a run of consecutive samples (level
+    0: ISOLATION_BLOCK of them; each level above: two nodes of the level below), bounded by
+    the segment from its first to its last sample widened by its radius, the farthest of its
+    samples from that segment. ``radii``: level l's nodes from ``offsets[l]``; built in one
+    compiled pass, O(n). A radius is 0 exactly when every sample of its node is the same
+    point, bit for bit."""
+    n = samples.shape[0]
+    counts = [-(-n // ISOLATION_BLOCK)]
+    while counts[-1] > 1:
+        counts.append(-(-counts[-1] // 2))
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.intp)
+    radii = np.empty(offsets[-1])
+    _build_capsules(samples, radii, offsets)
+    return radii, offsets
+
+
 @jit(forceinline=True)
-def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
+def _to_segment(samples, a, b, x, y, z):
+    """Distance of (x, y, z) from the segment from samples[a] to samples[b], and the size its
+    round-off scales with (|point - samples[a]| + |samples[b] - samples[a]|). Differences
+    from samples[a] and a cross product: no cancellation of the coordinates' magnitude."""
+    wx = x - samples[a, 0]
+    wy = y - samples[a, 1]
+    wz = z - samples[a, 2]
+    ux = samples[b, 0] - samples[a, 0]
+    uy = samples[b, 1] - samples[a, 1]
+    uz = samples[b, 2] - samples[a, 2]
+    ww = np.sqrt(wx * wx + wy * wy + wz * wz)
+    uu = ux * ux + uy * uy + uz * uz
+    scale = ww + np.sqrt(uu)
+    along = wx * ux + wy * uy + wz * uz
+    if along <= 0.0 or uu == 0.0:
+        return ww, scale
+    if along >= uu:
+        vx = x - samples[b, 0]
+        vy = y - samples[b, 1]
+        vz = z - samples[b, 2]
+        return np.sqrt(vx * vx + vy * vy + vz * vz), scale
+    cx = wy * uz - wz * uy
+    cy = wz * ux - wx * uz
+    cz = wx * uy - wy * ux
+    return np.sqrt((cx * cx + cy * cy + cz * cz) / uu), scale
+
+
+@jit
+def _build_capsules(samples, radii, offsets):
+    """:func:`_capsule_tree`'s radii: a leaf's from its samples, a node's above from its
+    children's (the farther end of each child's segment from the node's segment plus the
+    child's radius: an upper bound, as the distance from a segment is convex along the
+    other), each enlarged by CAPSULE_SLACK of its round-off size."""
+    n = samples.shape[0]
+    for leaf in range(offsets[1]):
+        first = leaf * ISOLATION_BLOCK
+        last = min(first + ISOLATION_BLOCK, n) - 1
+        radius = 0.0
+        same = True
+        for j in range(first, last + 1):
+            for d in range(3):
+                same = same and samples[j, d] == samples[first, d]
+            d, scale = _to_segment(samples, first, last, samples[j, 0], samples[j, 1],
+                                   samples[j, 2])
+            radius = max(radius, d + CAPSULE_SLACK * scale)
+        # (0 claims identical samples; any other node has a positive radius)
+        radii[leaf] = 0.0 if same else max(radius, 1e-300)
+    size = ISOLATION_BLOCK
+    for level in range(1, offsets.size - 1):
+        size *= 2
+        below = offsets[level - 1]
+        for node in range(offsets[level + 1] - offsets[level]):
+            first = node * size
+            last = min(first + size, n) - 1
+            mid = first + size // 2               # the right child's first sample
+            left = below + 2 * node
+            radius = radii[left]
+            if mid <= last:
+                right = left + 1
+                identical = radii[left] == 0.0 and radii[right] == 0.0
+                for d in range(3):
+                    identical = identical and samples[mid, d] == samples[first, d]
+                if not identical:
+                    # the children's inner ends (their outer ends are the node's)
+                    radius = 0.0
+                    for j, child in ((mid - 1, left), (mid, right)):
+                        d, scale = _to_segment(samples, first, last, samples[j, 0],
+                                               samples[j, 1], samples[j, 2])
+                        radius = max(radius, d + CAPSULE_SLACK * scale + radii[child])
+                    radius = max(radius, 1e-300)
+            radii[offsets[level] + node] = radius
+
+
+@jit(forceinline=True)
+def _tree_nearest(radii, offsets, samples, point, lo, hi, start, best_k, best, stack,
+                  bounds):
+    """Nearest sample of [lo, hi] to ``point`` and its distance, given a candidate
+    (``best_k`` at ``best``; -1 at inf for none): a depth-first search of the capsule tree
+    (:func:`_capsule_tree`) from the smallest node holding the window, the child whose capsule
+    is nearer first. A node is ruled out when its capsule is at least ``best`` away (triangle
+    inequality, with CAPSULE_SLACK for round-off); a node of radius 0 (a stretch exactly at
+    rest) is decided by one distance without visiting its samples. Of equal distances, the
+    sample :func:`_preferred` from ``start`` (the candidate's index, where there is one).
+    ``stack``, ``bounds``: scratch of _STACK entries.
+
+    Cost: where the reference nearly rests its samples lie on a short, nearly straight
+    capsule, and every node but those on the way to the nearest sample is ruled out:
+    O(log window) nodes. The triangle-inequality skips along the samples that this replaces
+    advanced one sample at a time there (the actual lagging along the reference's line),
+    O(window) per point."""
+    n = samples.shape[0]
+    a = lo // ISOLATION_BLOCK
+    b = hi // ISOLATION_BLOCK
+    level = 0
+    while (a >> level) != (b >> level):
+        level += 1
+    # an entry is node * 64 + level (levels < 64 for any array that fits in memory), with a
+    # lower bound of the distances of its samples (-inf: not computed)
+    stack[0] = ((a >> level) << 6) | level
+    bounds[0] = -np.inf
+    top = 1
+    while top > 0:
+        top -= 1
+        if bounds[top] >= best:
+            continue
+        level = stack[top] & 63
+        node = stack[top] >> 6
+        size = ISOLATION_BLOCK << level
+        first = node * size
+        last = min(first + size, n) - 1
+        if level == 0:
+            for j in range(max(first, lo), min(last, hi) + 1):
+                d = _chord(samples, j, point)
+                if d < best or (d == best and _preferred(j, best_k, start)):
+                    best = d
+                    best_k = j
+            continue
+        # the children within the window, their bounds, the nearer pushed last (searched
+        # first): where the distance falls monotonically across the window (the actual
+        # lagging along a reference at rest) the first leaf reached holds the nearest sample
+        # and every other node is ruled out
+        split = first + size // 2                   # the right child's first sample
+        count = 0
+        for side in range(2):
+            if (split > lo) if side == 0 else (split <= min(last, hi)):
+                child = 2 * node + side
+                c_first = first if side == 0 else split
+                c_last = min(split - 1, last) if side == 0 else last
+                radius = radii[offsets[level - 1] + child]
+                if radius == 0.0:
+                    # every sample of the child is the same: the one of the window
+                    # preferred at equal distances, decided by its own distance
+                    k = min(max(start, c_first, lo), c_last, hi)
+                    d = _chord(samples, k, point)
+                    if d < best or (d == best and _preferred(k, best_k, start)):
+                        best = d
+                        best_k = k
+                    continue
+                d, scale = _to_segment(samples, c_first, c_last, point[0], point[1],
+                                       point[2])
+                bound = d - radius - CAPSULE_SLACK * scale
+                if bound >= best:
+                    continue
+                stack[top] = (child << 6) | (level - 1)
+                bounds[top] = bound
+                top += 1
+                count += 1
+        if count == 2 and bounds[top - 1] > bounds[top - 2]:
+            stack[top - 1], stack[top - 2] = stack[top - 2], stack[top - 1]
+            bounds[top - 1], bounds[top - 2] = bounds[top - 2], bounds[top - 1]
+    return best_k, best
+
+
+@jit(forceinline=True)
+def _preferred(j, k, start):
+    """Whether sample j is preferred to sample k at an equal distance, as the scan from
+    ``start`` that the tree search replaced chose (it kept the first of equals it met, going
+    up from start, then down): start itself, then the samples above it nearest first, then
+    those below it nearest first (k = -1: no sample yet). Results stay those of the scan
+    where the reference rests exactly, as at a stop, where equal distances are common."""
+    if k < 0 or j == start:
+        return True
+    if k == start:
+        return False
+    if (j > start) != (k > start):
+        return j > start
+    return abs(j - start) < abs(k - start)
+
+
+@jit(forceinline=True)
+def _nearest_sample(samples, tree, isolation, point, base, lo, hi):
     """Index of the sample in [lo, hi] nearest to ``point`` (Euclidean; on the unit sphere
-    that is also the smallest angle). Exact: from ``base`` down to the nearest of its
-    neighbours, then the nearest of the core of that sample's block (:func:`_isolation`) is
-    it if the core's centre is at least ``best + |point - centre|`` from every other sample
-    of the window (triangle inequality). Else a scan: no sample within chord length
-    d_j - best of a sample j at distance d_j can be nearer than best (triangle inequality),
-    so it jumps past them by a galloping search on the cumulative chord length."""
+    that is also the smallest angle); ``tree``: the samples' :func:`_capsule_tree`. Exact:
+    from ``base`` down to the nearest of its neighbours (at most DESCENT_STEPS steps), then
+    the nearest of the core of that sample's block (:func:`_isolation`) is it if the core's
+    centre is at least ``best + |point - centre|`` from every other sample of the window
+    (triangle inequality), as nearly always. Else the capsule tree's search
+    (:func:`_tree_nearest`), whose cost does not grow with the samples of the window."""
     isolated, lower, upper = isolation
     best_k = base
     best = _chord(samples, base, point)
-    while best_k > lo:
+    steps = 0
+    while best_k > lo and steps < DESCENT_STEPS:
         d = _chord(samples, best_k - 1, point)
         if not d < best:
             break
         best_k -= 1
         best = d
+        steps += 1
     if best_k == base:
-        while best_k < hi:
+        while best_k < hi and steps < DESCENT_STEPS:
             d = _chord(samples, best_k + 1, point)
             if not d < best:
                 break
             best_k += 1
             best = d
+            steps += 1
     block = best_k // ISOLATION_BLOCK
     first, last, centre = _block_core(block, samples.shape[0])
     if lower[block] <= lo and hi <= upper[block]:
@@ -372,61 +586,12 @@ def _nearest_sample(samples, chord, isolation, point, base, lo, hi):
                 best_k = j
         if isolated[block] >= best + _chord(samples, centre, point):
             return best_k
-    start = best_k
-    # round-off of the cumulative chord length: never skip a sample by it
-    margin = 1e-12 * (1.0 + abs(chord[lo]) + abs(chord[hi]))
-    for direction in (1, -1):
-        bound = hi if direction > 0 else lo
-        j = start + direction
-        while (j - bound) * direction <= 0:
-            d = _chord(samples, j, point)
-            if d < best:
-                best = d
-                best_k = j
-            reach = d - best - margin
-            if reach <= 0.0:
-                j += direction
-                continue
-            target = chord[j] + direction * reach
-            j = _first_reaching(chord, j, direction, bound, target)
-    return best_k
-
-
-@jit(forceinline=True)
-def _first_reaching(chord, j, direction, bound, target):
-    """First index m beyond j (in ``direction``, up to ``bound``) with chord[m] at or past
-    ``target``; bound + direction if none."""
-    if j == bound:
-        # nothing beyond: without this, a target within round-off of chord[j] (a reach below
-        # its last digit, as on a stretch at rest) is "reached" at j itself, and the scan that
-        # called never moves on (it hung on a piece of LinuxCNC's boat example)
-        return bound + direction
-    previous = j
-    step = 1
-    while True:
-        m = j + direction * step
-        if (m - bound) * direction >= 0:
-            m = bound
-        if (chord[m] - target) * direction >= 0.0:
-            while abs(m - previous) > 1:
-                mid = (m + previous) // 2
-                if (chord[mid] - target) * direction >= 0.0:
-                    m = mid
-                else:
-                    previous = mid
-            return m
-        if m == bound:
-            return bound + direction
-        previous = m
-        step *= 2
-
-
-#: Samples per block of the isolation (:func:`_isolation`); a block's core is the block and
-#: one sample either side.
-ISOLATION_BLOCK = 8
-#: A block's isolation is taken over the search windows of its samples and of this many
-#: samples either side, so that it serves any point whose window lies within those.
-ISOLATION_SPAN = 4
+    radii, offsets = tree
+    # (allocated only here: most points never need them)
+    stack = np.empty(_STACK, dtype=np.int64)
+    bounds = np.empty(_STACK)
+    return _tree_nearest(radii, offsets, samples, point, lo, hi, best_k, best_k, best, stack,
+                         bounds)[0]
 
 
 @jit(forceinline=True)
@@ -437,11 +602,11 @@ def _block_core(block, n):
             min(start + ISOLATION_BLOCK // 2, n - 1))
 
 
-def _isolation(samples, chord, lo, hi, span):
+def _isolation(samples, tree, lo, hi, span):
     """For each block of ISOLATION_BLOCK samples: the smallest distance from its centre
     sample to the samples outside its core within [lower, upper] (the union of the windows
     [lo, hi] of its samples and of ``span`` samples either side), and that range. Computed
-    once per reference curve; :func:`_nearest_sample` then needs no scan for a point whose
+    once per reference curve; :func:`_nearest_sample` then needs no search for a point whose
     nearest core sample is nearer than that distance less the point's distance from the
     centre, as nearly always."""
     n = samples.shape[0]
@@ -449,18 +614,21 @@ def _isolation(samples, chord, lo, hi, span):
     isolated = np.empty(blocks)
     lower = np.empty(blocks, dtype=np.intp)
     upper = np.empty(blocks, dtype=np.intp)
-    run_chunks(_isolation_chunks, (blocks + _CHUNK - 1) // _CHUNK, samples, chord,
+    run_chunks(_isolation_chunks, (blocks + _CHUNK - 1) // _CHUNK, samples, *tree,
                np.ascontiguousarray(lo, dtype=np.intp), np.ascontiguousarray(hi, dtype=np.intp),
                int(span), isolated, lower, upper)
     return isolated, lower, upper
 
 
 @jit
-def _isolation_chunks(first, stop, samples, chord, lo, hi, span, isolated, lower, upper):
+def _isolation_chunks(first, stop, samples, radii, offsets, lo, hi, span, isolated, lower,
+                      upper):
     """:func:`_isolation` of the blocks of chunks [first, stop)."""
     n = samples.shape[0]
     blocks = isolated.size
     point = np.empty(3)
+    stack = np.empty(_STACK, dtype=np.int64)
+    bounds = np.empty(_STACK)
     for chunk in range(first, stop):
         for block in range(chunk * _CHUNK, min(blocks, (chunk + 1) * _CHUNK)):
             start = block * ISOLATION_BLOCK
@@ -475,32 +643,20 @@ def _isolation_chunks(first, stop, samples, chord, lo, hi, span, isolated, lower
             core_first, core_last, centre = _block_core(block, n)
             for d in range(3):
                 point[d] = samples[centre, d]
-            isolated[block] = _distance_to_others(samples, chord, point, core_first,
-                                                  core_last, a, b)
+            # the samples of [a, b] either side of the core (one call site: each inlined
+            # copy of the tree search costs compile time)
+            best = np.inf
+            none = centre - centre - 1      # -1, not a literal (which compiles a callee again)
+            for side in range(2):
+                side_lo = a if side == 0 else core_last + 1
+                side_hi = core_first - 1 if side == 0 else b
+                if side_lo <= side_hi:
+                    best = _tree_nearest(radii, offsets, samples, point, side_lo, side_hi,
+                                         centre, none, best, stack, bounds)[1]
+            isolated[block] = best
 
 
-@jit
-def _distance_to_others(samples, chord, point, first, last, a, b):
-    """Smallest distance from ``point`` (a sample's copy) to the samples of [a, b] outside
-    [first, last] (inf if none), by the galloping scan of _nearest_sample."""
-    best = np.inf
-    margin = 1e-12 * (1.0 + abs(chord[a]) + abs(chord[b]))
-    for direction in (1, -1):
-        bound = b if direction > 0 else a
-        j = last + 1 if direction > 0 else first - 1
-        while (j - bound) * direction <= 0:
-            d = _chord(samples, j, point)
-            if d < best:
-                best = d
-            reach = d - best - margin
-            if reach <= 0.0:
-                j += direction
-                continue
-            j = _first_reaching(chord, j, direction, bound, chord[j] + direction * reach)
-    return best
-
-
-def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points, base, lo,
+def _closest_parameters(kind, t, samples, tree, isolation, breaks, coef, points, base, lo,
                         hi):
     """Closest parameter of every point (see ReferencePath._search), in chunks of samples
     spread over the cores."""
@@ -508,16 +664,17 @@ def _closest_parameters(kind, t, samples, chord, isolation, breaks, coef, points
     parameter = np.empty(n)
     distance = np.empty(n)
     closest = np.empty((n, 3))
-    run_chunks(_closest_chunks, (n + _CHUNK - 1) // _CHUNK, kind, t, samples, chord,
+    run_chunks(_closest_chunks, (n + _CHUNK - 1) // _CHUNK, kind, t, samples, *tree,
                *isolation, breaks, coef, points, base, lo, hi, parameter, distance, closest)
     return parameter, distance, closest
 
 
 @jit
-def _closest_chunks(first, stop, kind, t, samples, chord, isolated, lower, upper, breaks,
-                    coef, points, base, lo, hi, parameter, distance, closest):
+def _closest_chunks(first, stop, kind, t, samples, radii, offsets, isolated, lower, upper,
+                    breaks, coef, points, base, lo, hi, parameter, distance, closest):
     """:func:`_closest_parameters` of the points of chunks [first, stop)."""
     n = points.shape[0]
+    tree = (radii, offsets)
     isolation = (isolated, lower, upper)
     for chunk in range(first, stop):
         out = np.empty((3, 3))
@@ -527,18 +684,18 @@ def _closest_chunks(first, stop, kind, t, samples, chord, isolated, lower, upper
             for d in range(3):
                 point[d] = points[i, d]
             parameter[i], distance[i] = _closest_parameter(
-                kind, t, samples, chord, isolation, breaks, coef, point, base[i], lo[i],
+                kind, t, samples, tree, isolation, breaks, coef, point, base[i], lo[i],
                 hi[i], out, spare)
             for d in range(3):
                 closest[i, d] = out[0, d]
 
 
 @jit(forceinline=True)
-def _closest_parameter(kind, t, samples, chord, isolation, breaks, coef, point, base, lo,
+def _closest_parameter(kind, t, samples, tree, isolation, breaks, coef, point, base, lo,
                        hi, out, spare):
     """Closest parameter of one point within the sample window [lo, hi], and its distance;
     the closest curve point is left in out[0] (``spare``: scratch of out's shape)."""
-    k = _nearest_sample(samples, chord, isolation, point, base, lo, hi)
+    k = _nearest_sample(samples, tree, isolation, point, base, lo, hi)
     # The minimum lies within one sample of the best sample: bracket it there and refine
     # by Newton's method safeguarded with bisection on the sign of the gradient.
     hint = k - (t.size - breaks.size) // 2   # the piece of sample k, or near it
