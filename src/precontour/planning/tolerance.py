@@ -252,6 +252,25 @@ class FeedWithinTolerance:
         """Compensated cycle time over the baseline's."""
         return self.compensated.duration / self.baseline.duration
 
+    @property
+    def friction_lines(self) -> tuple[int, ...]:
+        """Lines where the tolerance cannot be kept by slowing down: a miss on them, in either
+        search, whose error did not fall with the speed (:data:`FUTILE_SLOWING`: friction at
+        a stop, a reversal or a creeping axis holds it whatever the feed)."""
+        return tuple(sorted({int(m.line) for search in (self.baseline, self.compensated)
+                             for m in search.misses if m.futile and m.line is not None}))
+
+    @property
+    def ratio_where_kept(self) -> float:
+        """:attr:`ratio` over the lines where a tolerance can be kept: the time each search
+        spends on the :attr:`friction_lines` left out of both cycle times (the ratio itself
+        where there are none)."""
+        lines = self.friction_lines
+        if not lines:
+            return self.ratio
+        return (_time_outside(self.compensated, lines)
+                / _time_outside(self.baseline, lines))
+
     def table(self) -> str:
         """The three cycle times, the ratio and the errors of each."""
         draws = max(self.baseline.draws, self.compensated.draws)
@@ -274,6 +293,15 @@ class FeedWithinTolerance:
         lines.append(f"compensated / uncompensated within tolerance: {self.ratio:.3f} "
                      f"({shorter:.1f} % shorter); / as programmed: "
                      f"{self.compensated.duration / self.programmed.duration:.3f}")
+        friction = self.friction_lines
+        if friction:
+            shown = ", ".join(str(n) for n in friction[:10])
+            more = f" and {len(friction) - 10} more" if len(friction) > 10 else ""
+            kept = self.ratio_where_kept
+            lines.append(f"over the lines where the tolerance can be kept: {kept:.3f} "
+                         f"({100 * (1 - kept):.1f} % shorter); left out: {len(friction)} "
+                         f"line(s) where slowing down did not lower the error (friction): "
+                         f"{shown}{more}")
         lines.append(f"feed between {100 * self.min_speed * self.feed_scale_max:g} % and "
                      f"{100 * self.feed_scale_max:g} % of the programmed"
                      + (f"; the errors of the {len(self.exempt_lines)} rapid (G0) line(s) "
@@ -287,6 +315,15 @@ class FeedWithinTolerance:
                 if len(search.misses) > 5:
                     lines.append(f"  ... and {len(search.misses) - 5} more")
         return "\n".join(lines)
+
+
+def _time_outside(search: FeedSearch, lines: tuple[int, ...]) -> float:
+    """Time (s) ``search``'s timing spends off ``lines``: its samples on them, each a servo
+    period, taken from its duration (all of it when its samples carry no line)."""
+    if search.line is None:
+        return search.duration
+    on = int(np.count_nonzero(np.isin(search.line, np.asarray(lines))))
+    return search.duration - on * search.reference.ts
 
 
 def _speed(index: np.ndarray) -> np.ndarray:
