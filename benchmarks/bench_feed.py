@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from precontour import builtin_path
+from precontour.options import ToleranceOptions
 from precontour.planning import ContourTolerance
 from precontour.workflow import RunOutputs, run_program
 
@@ -48,7 +49,8 @@ def main(argv=None) -> None:
         plain_time = time.perf_counter() - start
         start = time.perf_counter()
         result = run_program(program, RunOutputs(program=folder / "fast.ngc"),
-                             contour_tolerance=tolerance, write_anyway=True, **common)
+                             contour_tolerance=ToleranceOptions(tolerance, write_anyway=True),
+                             **common)
         search_time = time.perf_counter() - start
     feed = result.feed
     print(f"{program.name}, {args.machine}, {args.controller}, tolerance "

@@ -34,6 +34,7 @@ from docpage import DOCS, markdown_table, replace_section, stamp
 from measure_compensation import TEST_PATHS, fan25_path, flank_path
 from measure_programs import PROGRAMS, find_demo, write_cl_csv
 from precontour import builtin_path
+from precontour.options import ToleranceOptions
 from precontour.planning import ContourTolerance
 from precontour.trajectory.builtin_paths import BUILTIN_PATHS
 from precontour.workflow import RunOutputs, run_program
@@ -73,8 +74,9 @@ def paths_section(folder: Path) -> str:
                 start = time.perf_counter()
                 result = run_program(source, RunOutputs(program=folder / f"{name}.ngc"),
                                      machine="zhang2013", controller=controller,
-                                     contour_tolerance=ContourTolerance(0.010),
-                                     feed_scale_max=scale, write_anyway=True)
+                                     contour_tolerance=ToleranceOptions(
+                                         ContourTolerance(0.010), feed_scale_max=scale,
+                                         write_anyway=True))
                 rows.append(_row(f"`{name}`" if name in TEST_PATHS else name, controller,
                                  scale, result, time.perf_counter() - start))
                 print(" | ".join(map(str, rows[-1])), file=sys.stderr, flush=True)
@@ -110,8 +112,8 @@ def linuxcnc_section(demos: Path | None, programs: list[str], folder: Path) -> s
         start = time.perf_counter()
         result = run_program(path, RunOutputs(program=folder / f"{path.stem}-fast.ngc"),
                              machine="linuxcnc-xyzac-trt", controller="pid-high", tcp=True,
-                             contour_tolerance=ContourTolerance(0.005, 5e-5),
-                             write_anyway=True)
+                             contour_tolerance=ToleranceOptions(
+                                 ContourTolerance(0.005, 5e-5), write_anyway=True))
         took = time.perf_counter() - start
         rows.append(_row(f"`{path.name}`", "pid-high", 1.0, result, took)
                     + [f"{plain:.0f} s", f"{took / plain:.1f}"])

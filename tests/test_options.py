@@ -58,7 +58,9 @@ def test_compensate_takes_the_options_to_the_former_spellings_numbers(servo):
     it is slowed by 0.035 s (measured), at 0.99 not at all and the compensation is left out
     in one window instead; the former keyword and LimitOptions give the same commands."""
     circle = generate_trajectory(builtin_path("circle"), servo.machine)
-    former = compensate(servo, circle, min_speed=0.99)
+    with pytest.warns(DeprecationWarning, match=r"min_speed=: former spelling, removed in "
+                      r"precontour 0\.2\.0; give limits=LimitOptions\(min_speed=\.\.\.\)"):
+        former = compensate(servo, circle, min_speed=0.99)
     options = compensate(servo, circle, limits=LimitOptions(min_speed=0.99))
     np.testing.assert_array_equal(former.commands.q, options.commands.q)
     assert former.left_out == options.left_out and former.left_out
@@ -77,6 +79,7 @@ def test_a_former_spelling_beside_an_options_object_is_refused(servo):
         compensate(servo, circle, learn=-1)
 
 
+@pytest.mark.filterwarnings("ignore:.*former spelling:DeprecationWarning")
 @pytest.mark.parametrize("options, message", [
     (dict(contour_tolerance=ToleranceOptions(ContourTolerance(0.01)), feed_scale_min=0.2),
      "give feed_scale_min in contour_tolerance"),
@@ -92,3 +95,29 @@ def test_run_program_checks_its_options_before_reading_anything(options, message
     with pytest.raises(InputError, match=message):
         run_program(tmp_path / "not-read.ngc", machine="zhang2013", controller="pid-low",
                     **options)
+
+
+def test_run_programs_former_spellings_warn_naming_the_release_and_the_options(tmp_path):
+    """The former keyword spellings still work (the options are built from them before the
+    program is read) and warn, pointed at the caller's line, with what replaces them."""
+    from precontour.workflow import run_program
+
+    with pytest.warns(DeprecationWarning) as caught:
+        with pytest.raises(InputError):
+            run_program(tmp_path / "not-there.ngc", machine="zhang2013", controller="pid-low",
+                        contour_tolerance=ContourTolerance(0.01), feed_scale_min=0.2,
+                        write_anyway=True)
+    messages = [str(w.message) for w in caught if w.category is DeprecationWarning]
+    assert messages == ["feed_scale_min=, write_anyway=: former spelling, removed in precontour "
+                        "0.2.0; give contour_tolerance=ToleranceOptions(feed_scale_min=..., "
+                        "write_anyway=...)"]
+    assert all(w.filename == __file__ for w in caught)
+
+
+def test_the_options_objects_do_not_warn(servo):
+    import warnings
+
+    circle = generate_trajectory(builtin_path("circle"), servo.machine)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        compensate(servo, circle, limits=LimitOptions(min_speed=0.99), learn=0)

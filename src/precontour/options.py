@@ -22,6 +22,7 @@ fastest feed within a contour-error tolerance (``run --tolerance``, ``--feed-sca
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,7 +34,7 @@ from .planning.tolerance import ContourTolerance
 from .simulation.ensemble import MachineEnsemble
 
 __all__ = ["LearningOptions", "LimitOptions", "ToleranceOptions", "learning_options",
-           "limit_options", "with_former_spellings"]
+           "limit_options", "with_former_spellings", "FORMER_SPELLINGS_REMOVED_IN"]
 
 
 @dataclass(frozen=True)
@@ -168,15 +169,27 @@ def limit_options(limits) -> LimitOptions:
     return LimitOptions(keep=limits)
 
 
+#: The release that removes the former keyword spellings of the options' fields
+#: (:func:`with_former_spellings`); until then they work and warn (DeprecationWarning).
+FORMER_SPELLINGS_REMOVED_IN = "0.2.0"
+
+
 def with_former_spellings(value, kind: type, make, name: str, **former):
     """``value`` as options of ``kind`` (itself, or ``make(value)`` of a plain value) with the
-    fields given in their former spellings (``former``: field -> value, None where not given).
-    Beside an options object they are refused: the object holds them."""
+    fields given in their former spellings (``former``: field -> value, None where not given),
+    each with a DeprecationWarning naming the release that removes it (pointed at the caller
+    of the function that takes them). Beside an options object they are refused: the object
+    holds them."""
     given = {key: v for key, v in former.items() if v is not None}
     if isinstance(value, kind):
         if given:
             raise InputError(f"give {', '.join(given)} in {name} ({kind.__name__}), not "
                              "beside it", field=next(iter(given)))
         return value
+    if given:
+        fields = ", ".join(f"{key}=..." for key in given)
+        warnings.warn(f"{', '.join(f'{key}=' for key in given)}: former spelling, removed in "
+                      f"precontour {FORMER_SPELLINGS_REMOVED_IN}; give {name}="
+                      f"{kind.__name__}({fields})", DeprecationWarning, stacklevel=3)
     options = make(value)
     return replace(options, **given) if given else options

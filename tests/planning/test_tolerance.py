@@ -9,6 +9,7 @@ from scipy.interpolate import make_interp_spline
 
 from precontour.cli import main
 from precontour.errors import ToleranceError
+from precontour.options import ToleranceOptions
 from precontour.planning import ContourTolerance, feed_within_tolerance
 from precontour.planning.tolerance import FUTILE_SLOWING, HALVING_TIME, _futile_lines, gentle
 from precontour.prediction.contour import ReferencePath
@@ -140,7 +141,7 @@ def test_a_gcode_program_with_an_interior_stop_keeps_the_tolerance(tmp_path):
     outputs = RunOutputs(program=tmp_path / "out.ngc", commands=tmp_path / "out.csv")
     tolerance = ContourTolerance(0.020, 4e-4)
     result = run_program(source, outputs, machine="zhang2013", controller="pid-high",
-                         contour_tolerance=tolerance, feed_scale_max=1.5)
+                         contour_tolerance=ToleranceOptions(tolerance, feed_scale_max=1.5))
     write_run_outputs(result, outputs, [source])
     feed = result.feed
     assert feed.planned.duration < feed.programmed.duration - 0.3
@@ -219,8 +220,8 @@ def test_the_library_raises_the_tolerance_error(tmp_path):
     source = write_cl(fan25(), tmp_path / "fan25.csv")
     with pytest.raises(ToleranceError, match="does not keep the tolerance"):
         run_program(source, RunOutputs(program=tmp_path / "o.ngc"), machine="zhang2013",
-                    controller="pid-low", contour_tolerance=ContourTolerance(1e-5),
-                    feed_scale_min=0.5)
+                    controller="pid-low",
+                    contour_tolerance=ToleranceOptions(ContourTolerance(1e-5), feed_scale_min=0.5))
 
 
 @pytest.mark.parametrize("extra, message", [
@@ -335,7 +336,9 @@ def test_learning_meets_the_tolerance_where_compensation_left_a_stop_over_it(tmp
         common = dict(machine="zhang2013", controller="pid-high",
                       contour_tolerance=ContourTolerance(TOLERANCE))
         if k == 0:
-            plain = run_program(source, outputs, write_anyway=True, **common).feed.compensated
+            anyway = {**common, "contour_tolerance": ToleranceOptions(ContourTolerance(TOLERANCE),
+                                                                      write_anyway=True)}
+            plain = run_program(source, outputs, **anyway).feed.compensated
             assert plain.met or plain.misses[0].at_rest
         result = run_program(source, outputs, learn=1, **common)
         write_run_outputs(result, outputs, [source])
