@@ -377,18 +377,6 @@ class _Context:
         node_tip = np.concatenate([self.tips[k0:k0 + 1], node_tip])
         return piece_durations, move, node_q, node_tip
 
-    def orientation_jacobian(self, q):
-        """d(orientation)/d(rotary axes) at the poses ``q`` (n, 5): (n, 3, 2), by central
-        differences (the kinematics give positions only)."""
-        step = 1e-6
-        shifted = np.repeat(q[:, None, :], 4, axis=1)
-        shifted[:, 0, 3] += step
-        shifted[:, 1, 3] -= step
-        shifted[:, 2, 4] += step
-        shifted[:, 3, 4] -= step
-        o = self.kinematics.forward(shifted.reshape(-1, 5))[1].reshape(-1, 4, 3)
-        return np.stack([o[:, 0] - o[:, 1], o[:, 2] - o[:, 3]], axis=2) / (2.0 * step)
-
     def corner_factors(self, durations, node_path, reach, tolerance, node_ori=None,
                        node_q=None):
         """Per corner between consecutive pieces, the speed factor (<= 1) that keeps its blend
@@ -440,7 +428,8 @@ class _Context:
         # through the orientation's Jacobian at the corner (a chord of a long rotation can
         # point far from its tangent there). Pieces at rest between the legs do not move the
         # pose, so the corner is the node where the next leg starts.
-        jacobian = self.orientation_jacobian(node_q[moving[1:]])
+        corner = node_q[moving[1:]]
+        jacobian = self.kinematics.orientation_jacobian(corner[:, 3], corner[:, 4])
         turning_in = np.einsum("nik,nk->ni", jacobian, rotary[moving[:-1]])
         turning_out = np.einsum("nik,nk->ni", jacobian, rotary[moving[1:]])
         span = moving[1:] - moving[:-1]
