@@ -41,7 +41,8 @@ from precontour.cli import main  # noqa: E402
 from precontour.toolpath import read_program  # noqa: E402
 from precontour.toolpath.linuxcnc_run import linuxcnc_unavailable  # noqa: E402
 
-from closed_loop_measure import errors, late, read_log, worse_lines  # noqa: E402
+from closed_loop_measure import (SETTLE, errors, late, line_maxima, line_maxima_of,  # noqa: E402
+                                 read_log, worse_lines)
 from lcnc_fixtures import DEMOS  # noqa: E402
 
 IMPELLER = DEMOS / "impeller-7bl-xyzac.ngc"
@@ -123,13 +124,18 @@ def bench_case(name: str, machine_name: str, program: Path, work: Path,
         rows.append(("overlay, predicted" if k == 0 else f"overlay, `--learn-from` {k}",
                      read_log(work / f"ovrun{k}.csv", letters)))
     base_tip, base_ori = errors(timing, timing, moves, machine.kinematics)
-    again = rows[1][1]
+    # lines judged from SETTLE after the first move (as the table) and from the first move
+    settles = (SETTLE, 0.0)
+    base = [line_maxima_of(timing, timing, moves, machine.kinematics, s) for s in settles]
+    again = [line_maxima_of(timing, rows[1][1], moves, machine.kinematics, s)
+             for s in settles]
     table = []
     for label, log in rows:
-        tip, ori = errors(timing, log, moves, machine.kinematics)
+        tip, ori, line = errors(timing, log, moves, machine.kinematics, with_lines=True)
         periods = late(timing, log, moves)
-        worse = worse_lines(timing, again, log, moves, machine.kinematics)
-        worse_all = worse_lines(timing, again, log, moves, machine.kinematics, settle=0.0)
+        worse = worse_lines(line_maxima(tip, ori, line), base[0], again[0])
+        worse_all = worse_lines(line_maxima_of(timing, log, moves, machine.kinematics, 0.0),
+                                base[1], again[1])
         table.append([name, label, f"{tip.max():.2f}", f"{tip.mean():.3f}",
                       f"{100 * tip.mean() / base_tip.mean():.0f} %", f"{ori.max():.3f}",
                       f"{ori.mean():.4f}", f"{np.abs(periods).max()}",

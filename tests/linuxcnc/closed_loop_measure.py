@@ -8,6 +8,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from precontour.cnc.blocks import block_starts
+from precontour.compensation.blocks import ORIENTATION_MARGIN, RELATIVE_MARGIN, TIP_MARGIN
 from precontour.tables import read_columns
 
 #: Seconds after the first move's start left out of every measure: the approach rapid (G0,
@@ -86,25 +87,29 @@ def line_maxima(tip, orientation, line):
                 np.maximum.reduceat(orientation[order], first)) if ordered[i] > 0}
 
 
-def worse_lines(reference, again, run, moves, kinematics, settle=SETTLE):
-    """Program lines on which ``run`` is worse than ``reference`` (the uncompensated run) in
-    tip or orientation max beyond the margins precontour judges by (0.1 um or 1 urad, or
-    5 % of the line's uncompensated max) or beyond the line's repeatability (its difference
-    between ``reference`` and ``again``, a second uncompensated run), whichever is larger,
-    measured by :func:`errors` from ``settle`` after the first move's start."""
-    base = line_maxima(*errors(reference, reference, moves, kinematics, settle,
-                               with_lines=True))
-    repeat = line_maxima(*errors(reference, again, moves, kinematics, settle,
-                                 with_lines=True))
-    ours = line_maxima(*errors(reference, run, moves, kinematics, settle, with_lines=True))
+def line_maxima_of(reference, run, moves, kinematics, settle=SETTLE):
+    """:func:`line_maxima` of ``run``'s :func:`errors` against ``reference``."""
+    return line_maxima(*errors(reference, run, moves, kinematics, settle, with_lines=True))
+
+
+def worse_lines(ours, base, repeat):
+    """Program lines on which ``ours`` (:func:`line_maxima` of a run) is worse than ``base``
+    (of the uncompensated run) in tip or orientation max beyond the margins precontour judges
+    by (:data:`~precontour.compensation.blocks.TIP_MARGIN` /
+    :data:`~precontour.compensation.blocks.ORIENTATION_MARGIN`, or
+    :data:`~precontour.compensation.blocks.RELATIVE_MARGIN` of the line's uncompensated max)
+    or beyond the line's repeatability (its difference between ``base`` and ``repeat``, of a
+    second uncompensated run), whichever is larger."""
     worse = []
     for number, (tip, ori) in sorted(ours.items()):
         if number not in base:
             continue
         b_tip, b_ori = base[number]
         r_tip, r_ori = repeat.get(number, base[number])
-        if (tip > b_tip + max(0.1, 0.05 * b_tip, abs(r_tip - b_tip))
-                or ori > b_ori + max(1e-3, 0.05 * b_ori, abs(r_ori - b_ori))):
+        # errors() gives um and mrad, the margins are mm and rad
+        if (tip > b_tip + max(1e3 * TIP_MARGIN, RELATIVE_MARGIN * b_tip, abs(r_tip - b_tip))
+                or ori > b_ori + max(1e3 * ORIENTATION_MARGIN, RELATIVE_MARGIN * b_ori,
+                                     abs(r_ori - b_ori))):
             worse.append(number)
     return worse
 
