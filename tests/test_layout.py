@@ -9,10 +9,10 @@ import precontour
 
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
-STAGES = ("defaults", "errors", "files", "kernels", "piecewise", "machine", "toolpath", "trajectory",
+STAGES = ("defaults", "errors", "files", "parallel", "kernels", "piecewise", "machine", "toolpath", "trajectory",
           "tables",
           "prediction", "compensation", "simulation", "planning", "options", "identification",
-          "workflow",
+          "workflow", "batch",
           "reports", "system", "cnc", "cli")
 
 

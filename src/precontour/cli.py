@@ -33,6 +33,7 @@ from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS, DE
                        builtin_machines, default_max_samples)
 from .errors import NOTICES, InputError, PrecontourError
 from .files import OutputSet, Terminated, input_files, interruption, sigterm_as_exception
+from .parallel import using_jobs
 
 EXIT_USAGE = 2
 
@@ -48,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     NOTICES.addHandler(notices)
     propagate, NOTICES.propagate = NOTICES.propagate, False
     try:
-        with sigterm_as_exception():
+        with sigterm_as_exception(), using_jobs(getattr(args, "jobs", None)):
             return args.run(args)
     except PrecontourError as exc:
         print(f"precontour: error: {_one_line(exc)}", file=sys.stderr)
@@ -143,9 +144,26 @@ def build_parser() -> argparse.ArgumentParser:
     for add_command in (_add_predict_command, _add_trajectory_command, _add_compensate_command,
                         _add_simulate_command, _add_demo_command, _add_compare_command,
                         _add_identify_command, _add_excite_command, _add_export_command,
-                        _add_run_command, _add_machines_command, _add_linuxcnc_config_command):
+                        _add_run_command, _add_batch_command, _add_machines_command,
+                        _add_linuxcnc_config_command):
         add_command(commands)
+    for name in JOBS_COMMANDS:
+        _add_jobs_option(commands.choices[name])
     return parser
+
+
+#: The commands with independent work to spread over the cores (``--jobs``).
+JOBS_COMMANDS = ("predict", "trajectory", "compensate", "simulate", "demo", "compare", "run",
+                 "batch")
+
+
+def _add_jobs_option(parser: argparse.ArgumentParser) -> None:
+    """``--jobs N``: how much runs at once (:func:`precontour.parallel.using_jobs`)."""
+    parser.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
+                        help="pieces of independent work run at once: threads for the chunks "
+                             "of the compiled loops, the axes and the draws of the virtual "
+                             "machine; for batch, programs (default: all cores, or "
+                             "NUMBA_NUM_THREADS where set); results do not depend on it")
 
 
 def _add_predict_command(commands) -> None:
@@ -514,6 +532,48 @@ def _add_run_command(commands) -> None:
                         help="unit of the rotary axes in the traces (default: rad for "
                              ".csv/.npz/.parquet tables, deg for controllers' text traces)")
     run.set_defaults(run=run_run)
+
+
+def _add_batch_command(commands) -> None:
+    batch = commands.add_parser(
+        "batch", help="run over many programs and machines, one output set per program",
+        description="Run every program given (files, or folders of them) on every machine "
+                    "given, as precontour run does, each into its own output set in "
+                    "--out-dir (the program's own name; under a folder per machine where "
+                    "there are several). The programs run side by side, on the cores of "
+                    "this computer (--jobs) or on the workers of a Dask cluster "
+                    "(--executor); a program that fails is reported with its error and the "
+                    "others go on. A line per program goes to stdout as it ends; exits 1 "
+                    "where any failed.",
+        epilog=_machines_epilog())
+    batch.add_argument("programs", nargs="+", type=Path, metavar="PROGRAM",
+                       help="NC programs or CL data, or folders of them")
+    batch.add_argument("--machine", action="append", required=True,
+                       help="built-in machine name or machine TOML file; repeat for a fleet "
+                            "(required; `precontour machines` lists the built-in ones)")
+    batch.add_argument("--controller", required=True,
+                       help="controller name in the machine files (required)")
+    batch.add_argument("--out-dir", type=Path, required=True, metavar="DIR",
+                       help="folder of the outputs, created if missing (never an input's "
+                            "own file)")
+    batch.add_argument("--stream", action="store_true",
+                       help="also write each program's halstreamer file (NAME.txt)")
+    batch.add_argument("--commands", action="store_true",
+                       help="also write each program's command table (NAME.csv)")
+    batch.add_argument("--executor", default=None, metavar="dask://HOST:PORT",
+                       help="run the programs on the workers of this Dask distributed "
+                            "scheduler (pip install 'precontour[dask]') instead of --jobs "
+                            "processes here")
+    _add_toolpath_format_option(batch)
+    _add_planning_options(batch)
+    _add_iterations_option(batch)
+    _add_learn_option(batch, 0, help="passes of learning, as for run (default 0 = off)")
+    _add_min_speed_option(batch)
+    _add_tol_option(batch)
+    batch.add_argument("--draws", type=_positive_int, default=DEFAULT_CHECK_DRAWS, metavar="N",
+                       help="check both commands on N machines, as for run (default "
+                            f"{DEFAULT_CHECK_DRAWS})")
+    batch.set_defaults(run=run_batch_command)
 
 
 def _add_machines_command(commands) -> None:
@@ -1194,6 +1254,31 @@ def run_run(args: argparse.Namespace) -> int:
           + (f" and {len(files) - 4} more" if len(files) > 4 else "")
           + f" in {time.perf_counter() - start:.1f} s")
     return 0
+
+
+def run_batch_command(args: argparse.Namespace) -> int:
+    from .batch import run_batch
+    from .options import LimitOptions
+
+    def progress(done: int, total: int, entry) -> None:
+        for note in entry.notices:
+            named = note if str(entry.job.program) in note else f"{entry.job.program}: {note}"
+            print(f"precontour: note: {named}", file=sys.stderr)
+        print(f"[{done}/{total}] {entry.line()}", flush=True)
+
+    result = run_batch(args.programs, args.out_dir, machines=args.machine,
+                       controller=args.controller, stream=args.stream, commands=args.commands,
+                       executor=args.executor, jobs=args.jobs, progress=progress,
+                       tcp=args.tcp, dwell=args.dwell, corner_tolerance=args.corner_tol,
+                       corner_orientation_tolerance=args.corner_ori_tol,
+                       max_samples=args.max_samples, iterations=args.iterations,
+                       tolerance=args.tol, learn=args.learn,
+                       limits=LimitOptions(min_speed=args.min_speed), draws=args.draws,
+                       format=args.format, tool_table=args.tool_table)
+    print(result.summary().splitlines()[-1])
+    for entry in result.failed:
+        print(f"precontour: error: {entry.error} (on {entry.job.machine})", file=sys.stderr)
+    return 1 if result.failed else 0
 
 
 def run_at_timing_command(args: argparse.Namespace) -> int:

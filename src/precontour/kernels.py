@@ -28,6 +28,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 from numba.core import event
 
+from .parallel import jobs
+
 __all__ = ["jit", "run_chunks", "NOTE", "before_note", "print_note", "compile_seconds_left",
            "threads"]
 
@@ -129,9 +131,9 @@ event.register("numba:compile", _Note())
 
 
 def threads() -> int:
-    """Threads :func:`run_chunks` uses: numba's thread count (``NUMBA_NUM_THREADS``,
-    default the number of cores)."""
-    return max(1, int(numba.config.NUMBA_NUM_THREADS))
+    """Threads :func:`run_chunks` uses: the jobs setting (:func:`precontour.parallel.jobs`,
+    ``--jobs``; default all cores)."""
+    return jobs()
 
 
 _pool: ThreadPoolExecutor | None = None

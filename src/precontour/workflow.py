@@ -17,6 +17,7 @@ import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
+from itertools import islice
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -33,6 +34,7 @@ from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE
 from .errors import InputError, MachineLimitError, ToleranceError, is_whole_number, notice
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
+from .parallel import map_ordered
 from .options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
                       limit_options, with_former_spellings)
 from .planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
@@ -792,18 +794,19 @@ def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
     """Contour errors of the uncompensated (``reference.q``) and the compensated commands on
     the realistic virtual machine (discrete controller, friction, feed-forward friction
     compensation), against ``reference``. The two runs are independent time loops: with
-    ``workers`` >= 2 they run in two processes at once (None: see :func:`run_program`)."""
+    ``workers`` >= 2 they run in two processes at once (None: see :func:`run_program`), else
+    on :func:`~.parallel.jobs` threads of this one."""
     spec = str(Path(machine).resolve()) if Path(str(machine)).exists() else str(machine)
-    jobs = [(spec, controller, reference, q) for q in (reference.q, q_compensated)]
+    runs = [(spec, controller, reference, q) for q in (reference.q, q_compensated)]
     if workers is None:
         workers = (min(2, os.cpu_count() or 1) if reference.n_samples >= PARALLEL_MIN_SAMPLES
                    else 1)
     if workers < 2:
-        return tuple(_virtual_machine_errors(*job) for job in jobs)
+        return tuple(map_ordered(lambda run: _virtual_machine_errors(*run), runs))
     # forkserver: a clean process, whatever threads (pyarrow, BLAS) this one has started.
     context = multiprocessing.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
-        futures = [pool.submit(_virtual_machine_errors, *job) for job in jobs]
+        futures = [pool.submit(_virtual_machine_errors, *run) for run in runs]
         return tuple(f.result() for f in futures)
 
 
@@ -941,22 +944,32 @@ def errors_on_draws(reference: Trajectory, q: np.ndarray, machine_obj: Machine,
                     controller: str, ensemble: MachineEnsemble,
                     nominal: ContourErrors | None = None):
     """The contour errors of the commands ``q`` against ``reference`` on each draw of
-    ``ensemble`` (on the realistic virtual machine), one draw simulated at a time, so that one
-    draw's encoder noise and motion are in memory at once (a long program); a generator.
-    Draw 0 of an ensemble whose first draw is the machine file's machine is ``nominal`` where
-    given (its errors there, already simulated)."""
-    from .simulation.virtual_machine import REALISTIC, simulate
+    ``ensemble`` (on the realistic virtual machine), a generator: the draws run on
+    :func:`~.parallel.jobs` threads, with that many draws' encoder noise and motion in memory
+    at once (a long program). Draw 0 of an ensemble whose first draw is the machine file's
+    machine is ``nominal`` where given (its errors there, already simulated)."""
+    return map_ordered(_DrawErrors(reference, machine_obj, controller),
+                       [(q, ensemble, draw, nominal) for draw in range(ensemble.draws)])
 
-    rotary = [d.is_rotary for d in machine_obj.drives]
-    first = 0
-    if ensemble.nominal and nominal is not None:
-        yield nominal
-        first = 1
-    for draw in range(first, ensemble.draws):
+
+class _DrawErrors:
+    """One draw's contour errors of a command, a task of :func:`errors_on_draws` (an object,
+    not a closure: the same task for every command and ensemble of a check)."""
+
+    def __init__(self, reference: Trajectory, machine_obj: Machine, controller: str):
+        self.reference, self.machine, self.controller = reference, machine_obj, controller
+        self.rotary = [d.is_rotary for d in machine_obj.drives]
+
+    def __call__(self, task) -> ContourErrors:
+        from .simulation.virtual_machine import REALISTIC, simulate
+
+        q, ensemble, draw, nominal = task
+        if draw == 0 and ensemble.nominal and nominal is not None:
+            return nominal
         check_signals()
-        q_act = simulate(reference.t, q, machine_obj, controller, **REALISTIC,
-                         **ensemble.option(draw, reference.n_samples, rotary)).q_act
-        yield contour_errors_program(reference, q_act, machine_obj.kinematics)
+        q_act = simulate(self.reference.t, q, self.machine, self.controller, **REALISTIC,
+                         **ensemble.option(draw, self.reference.n_samples, self.rotary)).q_act
+        return contour_errors_program(self.reference, q_act, self.machine.kinematics)
 
 
 def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj: Machine,
@@ -966,22 +979,28 @@ def check_on_draws(reference: Trajectory, q_compensated: np.ndarray, machine_obj
     """Both commands (``reference.q`` and ``q_compensated``) on every draw of ``ensemble``
     (default :class:`MachineEnsemble` ()) (:func:`errors_on_draws`): draw 0, the machine
     file's machine, is ``nominal`` (their errors there, already simulated; no encoder, so a
-    rerun is the same run)."""
+    rerun is the same run). The draws of all the runs (uncompensated, its rerun where the
+    encoder differs, compensated) go through one queue of :func:`~.parallel.jobs` threads, so
+    the cores stay busy from one run's draws to the next."""
     from .compensation.blocks import block_starts, judge, with_repeatability
 
     ensemble = MachineEnsemble() if ensemble is None else ensemble
     starts = block_starts(reference.n_samples, reference.ts, line)
-
-    def on_draws(q, errors_nominal, machines=ensemble):
-        return errors_on_draws(reference, q, machine_obj, controller, machines, errors_nominal)
-
-    before = judge(on_draws(reference.q, nominal[0]), starts)
-    again = None
+    runs = [(reference.q, ensemble, nominal[0])]
     if ensemble.rerun_differs:
-        again = judge(on_draws(reference.q, nominal[0], ensemble.rerun()), starts)
+        runs.append((reference.q, ensemble.rerun(), nominal[0]))
+    runs.append((q_compensated, ensemble, nominal[1]))
+    errors = map_ordered(_DrawErrors(reference, machine_obj, controller),
+                         [(q, machines, draw, errors_nominal)
+                          for q, machines, errors_nominal in runs
+                          for draw in range(machines.draws)])
+    # each judgement takes its run's draws off the one ordered queue
+    judged = [judge(islice(errors, machines.draws), starts) for _, machines, _ in runs]
+    before, after = judged[0], judged[-1]
+    again = judged[1] if ensemble.rerun_differs else None
+    if again is not None:
         before = with_repeatability(before, again)
-    return DrawCheck(ensemble=ensemble, before=before,
-                     after=judge(on_draws(q_compensated, nominal[1]), starts), starts=starts,
+    return DrawCheck(ensemble=ensemble, before=before, after=after, starts=starts,
                      again=again)
 
 

@@ -15,7 +15,6 @@ jerk as the stretch's end conditions.
 
 from __future__ import annotations
 
-import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ from ..defaults import FIT_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError
 from ..kernels import jit
+from ..parallel import jobs
 
 # DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default fit tolerances (1 um on the linear
 # axes, 1 urad on the rotary ones), are defined in precontour.defaults.
@@ -235,7 +235,7 @@ def fit_axes(t: np.ndarray, q: np.ndarray, *, tol_linear: float = DEFAULT_TOL_LI
 def map_axes(work) -> list:
     """[work(0), ..., work(4)], the axes spread over the cores: the fits' banded solves
     (LAPACK) and compiled loops release the interpreter lock, and the axes are independent."""
-    workers = min(len(AXES), os.cpu_count() or 1)
+    workers = min(len(AXES), jobs())
     if workers == 1:
         return [work(i) for i in range(len(AXES))]
     # rotary axes first: at their finer tolerance they need the most knots (the longest

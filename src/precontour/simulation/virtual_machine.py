@@ -22,7 +22,6 @@ independent, so they run on up to two threads. Cost and memory are linear in the
 from __future__ import annotations
 
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -36,6 +35,7 @@ from ..machine.controllers import Controller
 from ..machine.drives import AXES, Drive
 from ..errors import InputError, UnsupportedControllerError, plain
 from ..kernels import jit
+from ..parallel import jobs
 from ..machine.machine_file import Machine
 from ..trajectory.sampled import Trajectory, check_uniform_time
 
@@ -495,9 +495,9 @@ def _check_resolution(resolution, mode: str) -> np.ndarray | None:
 # --------------------------------------------------------------------------------------------
 
 def _map_axes(tasks) -> None:
-    """Each of ``tasks`` (compiled per-axis time loops, which release the GIL) on up to two
-    threads."""
-    workers = min(len(tasks), os.cpu_count() or 1, 2)
+    """Each of ``tasks`` (compiled per-axis time loops, which release the GIL) on up to
+    :func:`~precontour.parallel.jobs` threads."""
+    workers = min(len(tasks), jobs())
     if workers <= 1:
         for task in tasks:
             task()

@@ -1,0 +1,94 @@
+"""The jobs setting and the ordered thread map: results in order, memory bounded by the jobs,
+and ``run``'s numbers the same whatever the jobs."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from precontour.errors import InputError
+from precontour.parallel import jobs, map_ordered, program_executor, using_jobs
+
+PROGRAM = Path(__file__).parent / "linuxcnc" / "data" / "3plus2.ngc"
+
+
+def test_using_jobs_sets_and_restores_the_setting():
+    before = jobs()
+    with using_jobs(3):
+        assert jobs() == 3
+        with using_jobs(None):
+            assert jobs() == 3
+        with using_jobs(1):
+            assert jobs() == 1
+        assert jobs() == 3
+    assert jobs() == before
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(InputError, match="whole number >= 1"):
+            with using_jobs(bad):
+                pass
+
+
+def test_map_ordered_keeps_the_order_and_bounds_what_runs_ahead():
+    """Tasks that end in reverse order come back in order; no more than ``workers`` results
+    exist before the caller takes one (counted as tasks started minus results taken)."""
+    started, taken, most = [0], [0], [0]
+    lock = threading.Lock()
+
+    def task(i):
+        with lock:
+            started[0] += 1
+            most[0] = max(most[0], started[0] - taken[0])
+        time.sleep(0.002 * (10 - i % 10))
+        return i * i
+
+    out = []
+    for value in map_ordered(task, range(30), workers=3):
+        out.append(value)
+        with lock:
+            taken[0] += 1
+    assert out == [i * i for i in range(30)]
+    assert most[0] <= 3 + 1   # the workers' results and the one being taken
+
+
+def test_map_ordered_passes_a_task_error_to_the_caller():
+    def task(i):
+        if i == 4:
+            raise ValueError("task 4")
+        return i
+
+    with pytest.raises(ValueError, match="task 4"):
+        list(map_ordered(task, range(10), workers=2))
+
+
+def test_program_executor_refuses_an_address_that_is_not_dask():
+    with pytest.raises(InputError, match="dask://HOST:PORT"):
+        program_executor("tcp://127.0.0.1:8786")
+    with pytest.raises(InputError, match="dask://HOST:PORT"):
+        program_executor("dask://")
+
+
+def test_run_gives_the_same_numbers_with_one_job_and_with_two():
+    """``run`` on the 3+2 program with its five draws: the written program, the simulated
+    errors and every draw's block maxima are identical, bit for bit, with one job and with
+    two (the draws on two threads, the kernels' chunks split in two)."""
+    from precontour.workflow import run_program
+
+    results = {}
+    for n in (1, 2):
+        with using_jobs(n):
+            results[n] = run_program(PROGRAM, machine="zhang2013", controller="pid-high")
+    one, two = results[1], results[2]
+    assert one.program.text == two.program.text
+    np.testing.assert_array_equal(one.simulated_after.tip, two.simulated_after.tip)
+    np.testing.assert_array_equal(one.simulated_before.orientation,
+                                  two.simulated_before.orientation)
+    for name in ("tip_max", "orientation_max", "tip_mean"):
+        np.testing.assert_array_equal(getattr(one.draws.before, name),
+                                      getattr(two.draws.before, name))
+        np.testing.assert_array_equal(getattr(one.draws.after, name),
+                                      getattr(two.draws.after, name))
+    assert one.draws.before.tip_max.shape[0] == 5
