@@ -48,6 +48,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..errors import PrecontourError
 from ..files import check_signals
+from ..parallel import map_ordered
 from .blocks import (PROGRAM_MARGIN, SUMMARY_KEYS, TIE, Fallback, best,
                      block_starts, fall_back, improves, judge, not_finite, repaired_score,
                      score, splice_errors, whole_ok, with_repeatability, worse_blocks)
@@ -350,15 +351,18 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
             return not_finite(max(draws, 1), starts.size), None, None
         if like is None or like[0] is None or tail_errors_of is None \
                 or like[0].shape != motion.shape:
-            errors = [errors_of(m) for m in motion]
+            # the draws' contour errors side by side (threads: the closest-point search
+            # releases the GIL), as their motions were run
+            errors = list(map_ordered(errors_of, motion))
         else:
             parted = np.flatnonzero(np.any(motion != like[0], axis=(0, 2)))
             if parted.size == 0:
                 errors = list(like[1])
             else:
                 first = int(parted[0])
-                errors = [splice_errors(old, tail_errors_of(m[first:], first), first)
-                          for old, m in zip(like[1], motion)]
+                errors = list(map_ordered(
+                    lambda pair: splice_errors(pair[0], tail_errors_of(pair[1][first:], first),
+                                               first), zip(like[1], motion)))
         return judge(errors, starts), motion, errors
 
     rest = final_rest_index(q_reference)
