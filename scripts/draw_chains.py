@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from precontour import load_machine  # noqa: E402
-from precontour.machine.kinematics.chain import _turn_about, chain_of  # noqa: E402
+from precontour.machine.kinematics.chain import turn_about, chain_of  # noqa: E402
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "chains"
 MACHINES = ("zhang2013", "linuxcnc-xyzbc-trt", "head-table-bc", "linuxcnc-bridgemill",
@@ -36,7 +36,7 @@ def _placed(chain, rotary, axis, point, direction=False):
     links = chain._head_axes() if axis.side == "head" else chain._table_axes()
     index = [a for a, _ in links].index(axis)
     for carrier, slot in links[index + 1:]:
-        x = _turn_about(x, carrier, rotary[slot - 3], direction=direction)
+        x = turn_about(x, carrier, rotary[slot - 3], direction=direction)
     return x
 
 
@@ -77,7 +77,7 @@ def draw(name: str) -> Path:
     square = PART * np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0], [-1, -1, 0]])
     placed = square + centre + np.asarray(chain.workpiece_origin)
     for table_axis, slot in chain._table_axes():
-        placed = _turn_about(placed, table_axis, rotary[slot - 3])
+        placed = turn_about(placed, table_axis, rotary[slot - 3])
     ax.plot(*placed.T, color="tab:green", lw=1.5, label="part (workpiece frame xy)")
     cloud = np.vstack([placed, *seen])
     centre, half = cloud.mean(axis=0), 0.6 * np.ptp(cloud, axis=0).max()

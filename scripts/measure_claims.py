@@ -23,7 +23,7 @@ from pathlib import Path
 
 from docpage import DOCS, stamp, write_page
 from precontour.reports.compare import compute_compare
-from precontour.reports.compare_report import _markdown as compare_markdown
+from precontour.reports.compare_report import compare_markdown
 
 
 def demote(markdown: str) -> str:

@@ -134,3 +134,29 @@ def test_the_command_line_holds_no_numerics():
             continue
         found += [name for name in names if name.split(".")[0] in numerical]
     assert not found, found
+
+
+def _private_imports(path: Path) -> list[str]:
+    """The precontour modules and names ``path`` imports that are private (a part of the
+    dotted name, or an imported name, starting with an underscore)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("precontour") \
+                or isinstance(node, ast.ImportFrom) and node.level:
+            names = (node.module or "").split(".") + [a.name for a in node.names]
+            found += [f"{node.module}: {name}" for name in names
+                      if name.startswith("_") and name != "__version__"]
+        elif isinstance(node, ast.Import):
+            found += [a.name for a in node.names if a.name.startswith("precontour")
+                      and any(part.startswith("_") for part in a.name.split("."))]
+    return found
+
+
+def test_cli_scripts_and_benchmarks_use_no_private_module_or_name():
+    """The command line, the measurement scripts and the benchmarks go through what a user
+    can call: nothing private (issue 40 item 7), so the docs measure the public functions."""
+    root = PACKAGE.parent.parent
+    files = [PACKAGE / "cli.py", *sorted((root / "scripts").glob("*.py")),
+             *sorted((root / "benchmarks").glob("*.py"))]
+    wrong = {str(f.relative_to(root)): _private_imports(f) for f in files}
+    assert not {f: names for f, names in wrong.items() if names}

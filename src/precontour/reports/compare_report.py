@@ -390,7 +390,9 @@ def _setup_lines(result: "CompareResult") -> list[str]:
     ]
 
 
-def _markdown(result: "CompareResult") -> str:
+def compare_markdown(result: "CompareResult") -> str:
+    """The comparison's Markdown page (``compare.md``): set-up, the paper's claims as
+    measured, and the tables."""
     parts = ["# Comparison of compensation methods and controllers", ""]
     parts += [f"- {line}" for line in _setup_lines(result)]
     parts += ["", "## The paper's claims, measured", ""]
@@ -486,7 +488,7 @@ def _write_compare_files(result: "CompareResult") -> list[Path]:
         write_rows_csv(claim_rows(result), CLAIM_COLUMNS, out / names["claims.csv"]),
         *([write_rows_csv(result.model_error_rows, MODEL_ERROR_COLUMNS,
                           out / names["model-error.csv"])] if "model-error.csv" in names else []),
-        _write(out / names["compare.md"], _markdown(result).encode("utf-8")),
+        _write(out / names["compare.md"], compare_markdown(result).encode("utf-8")),
         _write(out / names["index.html"], _html(result, figures).encode("utf-8")),
     ]
     return written

@@ -75,8 +75,8 @@ class RotaryAxis:
         return -1.0 if self.side == "table" else 1.0
 
 
-def _turn_about(x: np.ndarray, axis: RotaryAxis, angle: np.ndarray, *,
-                direction: bool = False) -> np.ndarray:
+def turn_about(x: np.ndarray, axis: RotaryAxis, angle: np.ndarray, *,
+               direction: bool = False) -> np.ndarray:
     """Points x[..., 3] (or directions, ``direction``) turned by ``angle`` right-handed about
     ``axis``'s line through its point: with the axis along a machine axis, a rotation in one
     coordinate plane."""
@@ -112,7 +112,7 @@ class _ChainMotion:
                                                                       -self.tool_offset])
         x = np.broadcast_to(start, rotary.shape[:-1] + (3,))
         for axis, slot in self._head_axes():
-            x = _turn_about(x, axis, rotary[..., slot - 3], direction=direction)
+            x = turn_about(x, axis, rotary[..., slot - 3], direction=direction)
         return x
 
     def forward(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -124,8 +124,8 @@ class _ChainMotion:
         axis = self._tool(rotary, True)
         # into the workpiece frame: undo the table axes, the one nearest the base first
         for table_axis, slot in reversed(self._table_axes()):
-            tip = _turn_about(tip, table_axis, -rotary[..., slot - 3])
-            axis = _turn_about(axis, table_axis, -rotary[..., slot - 3], direction=True)
+            tip = turn_about(tip, table_axis, -rotary[..., slot - 3])
+            axis = turn_about(axis, table_axis, -rotary[..., slot - 3], direction=True)
         return tip - np.asarray(self.workpiece_origin), axis
 
     def linear_axes(self, P: np.ndarray, A, C=None) -> np.ndarray:
@@ -136,7 +136,7 @@ class _ChainMotion:
         rotary = np.stack(np.broadcast_arrays(tilt, turn), axis=-1)
         tip = np.asarray(P, dtype=float) + np.asarray(self.workpiece_origin)
         for table_axis, slot in self._table_axes():
-            tip = _turn_about(tip, table_axis, rotary[..., slot - 3])
+            tip = turn_about(tip, table_axis, rotary[..., slot - 3])
         nose = tip - self._tool(rotary, False)
         return nose * np.asarray(self.linear_senses)
 
