@@ -92,3 +92,33 @@ def test_run_gives_the_same_numbers_with_one_job_and_with_two():
         np.testing.assert_array_equal(getattr(one.draws.after, name),
                                       getattr(two.draws.after, name))
     assert one.draws.before.tip_max.shape[0] == 5
+
+
+def test_a_long_program_in_pieces_is_the_same_with_one_job_and_with_two():
+    """Prediction, contour errors and compensation of a program cut into pieces (the pieces
+    side by side on two threads): bit for bit what one job computes, piece after piece."""
+    from precontour import load_machine
+    from precontour.compensation.pieces import (compensate_program, contour_errors_program,
+                                                predict_program)
+    from precontour.trajectory.builtin_paths import builtin_path
+    from precontour.trajectory.generate import generate_trajectory
+
+    machine = load_machine("zhang2013")
+    models = machine.controller("pid-high").error_models(machine.drives)
+    traj = generate_trajectory(builtin_path("fan"), machine)
+    pieces = dict(piece_samples=traj.n_samples // 4, at_once_samples=traj.n_samples // 4)
+    out = {}
+    for n in (1, 2):
+        with using_jobs(n):
+            predicted = predict_program(traj, models, machine.kinematics, **pieces)
+            compensated = compensate_program(traj, machine.kinematics, models, **pieces)
+            errors = contour_errors_program(traj, compensated.trajectory.q,
+                                            machine.kinematics, **pieces)
+            out[n] = (predicted, compensated, errors)
+    (p1, c1, e1), (p2, c2, e2) = out[1], out[2]
+    assert p1.pieces == p2.pieces >= 3
+    np.testing.assert_array_equal(p1.e, p2.e)
+    np.testing.assert_array_equal(p1.contour.tip, p2.contour.tip)
+    np.testing.assert_array_equal(c1.trajectory.q, c2.trajectory.q)
+    np.testing.assert_array_equal(e1.tip, e2.tip)
+    np.testing.assert_array_equal(e1.orientation, e2.orientation)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..machine.drives import LinearErrorModel
+from ..parallel import map_ordered
 from ..prediction.contour import (DEFAULT_WINDOW, MAX_WINDOW_FACTOR, ContourErrors,
                                   ReferencePath)
 from ..prediction.splinefit import INITIAL_SAMPLES_PER_SEGMENT
@@ -148,7 +149,8 @@ def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorMod
     (``contour`` None without a reference). Memory is bounded by the piece size."""
     pieces = plan_pieces(n_samples, overlap_samples(models, ts, 1),
                          lambda a, b: read(a, b).q, piece_samples, ts)
-    for piece in pieces:
+
+    def one(piece):
         part = read(piece.start, piece.stop)
         prediction = predict_tracking(part.t, part.q, models, tol_linear=tol_linear,
                                       tol_rotary=tol_rotary)
@@ -161,7 +163,10 @@ def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorMod
         if part.has_reference:
             contour = _kept(ReferencePath.from_trajectory(part).errors(
                 *kinematics.forward(part.q - e)), keep)
-        yield piece, e[keep], contour, n_knots
+        return piece, e[keep].copy(), contour, n_knots
+
+    # the pieces are independent: side by side on the jobs' threads, as many in memory
+    yield from map_ordered(one, pieces)
 
 
 def predict_program(traj: Trajectory, models: tuple[LinearErrorModel, ...], kinematics, *,
@@ -199,14 +204,16 @@ def contour_errors_program(reference: Trajectory, q_act: np.ndarray, kinematics,
     if n <= at_once_samples:
         return ReferencePath.from_trajectory(reference).errors(*kinematics.forward(q_act))
     overlap = int(ceil((MAX_WINDOW_FACTOR * DEFAULT_WINDOW + SPLINE_MARGIN) / reference.ts))
-    parts = []
-    for piece in plan_pieces(n, overlap, None, piece_samples, reference.ts):
+
+    def one(piece):
         part = _slice(reference, piece.start, piece.stop)
         errors = ReferencePath.from_trajectory(part).errors(
             *kinematics.forward(q_act[piece.start:piece.stop]))
-        parts.append(_kept(errors, slice(piece.keep_start - piece.start,
-                                         piece.keep_stop - piece.start)))
-    return _join(parts)
+        return _kept(errors, slice(piece.keep_start - piece.start,
+                                   piece.keep_stop - piece.start))
+
+    return _join(list(map_ordered(one, plan_pieces(n, overlap, None, piece_samples,
+                                                   reference.ts))))
 
 
 def compensate_pieces(read, n_samples: int, ts: float, kinematics,
@@ -223,15 +230,19 @@ def compensate_pieces(read, n_samples: int, ts: float, kinematics,
     chained = 2 * iterations + 1
     pieces = plan_pieces(n_samples, overlap_samples(models, ts, chained),
                          lambda a, b: read(a, b).q, piece_samples, ts)
-    for piece in pieces:
+
+    def one(piece):
         result = compensate(read(piece.start, piece.stop), kinematics, models, method=method,
                             iterations=iterations, tol_linear=tol_linear,
                             tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle)
         keep = slice(piece.keep_start - piece.start, piece.keep_stop - piece.start)
-        yield piece, CompensationResult(
+        return piece, CompensationResult(
             trajectory=_slice(result.trajectory, keep.start, keep.stop),
             before=_kept(result.before, keep), after=_kept(result.after, keep),
             iterations=result.iterations, history=result.history, method=result.method)
+
+    # the pieces are independent: side by side on the jobs' threads, as many in memory
+    yield from map_ordered(one, pieces)
 
 
 def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
