@@ -558,3 +558,12 @@ def test_run_warns_where_compensation_is_worse_where_it_is_worst(caplog):
     assert learned.draws.worse_in_whole() == ()
     assert "warning:" not in learned.table()
     assert not any("worst draw is above" in r.getMessage() for r in caplog.records)
+    # learning kept the uncompensated command everywhere, so the two slow-downs made for the
+    # corrections (measured: 4.955 s against the planned 4.791 s) are dropped: the program
+    # is the planned one, at the planned timing (issue 42 item 4)
+    assert learned.limited.result.learning.chosen == "uncompensated"
+    assert plain.limited.slowdowns and not learned.limited.slowdowns
+    assert learned.commands.duration == learned.planned.duration
+    np.testing.assert_array_equal(learned.commands.q, learned.planned.q)
+    assert any("slow-down(s) made for the corrections are dropped" in r.getMessage()
+               for r in caplog.records)

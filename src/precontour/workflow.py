@@ -26,8 +26,8 @@ import numpy as np
 from .compensation.blocks import Judgement
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.segments import learn_by_segments
-from .compensation.within_limits import (LimitedCompensation,
-                                         compensate_within_limits, learn_within_limits)
+from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
+                                         learn_within_limits, planned_if_uncompensated)
 from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
                        DEFAULT_FEED, EXPORT_FORMATS, default_max_samples)
@@ -638,7 +638,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             start = time.perf_counter()
             limited = learn_on_ensemble(
                 limited, machine_obj, learner, models, axis_limits, learn,
-                ensemble=learning_ensemble,
+                ensemble=learning_ensemble, planned=planned,
                 # each command tried (a long program's segment by segment): learning on an
                 # hour-long program runs for many minutes
                 progress=lambda label, summary: step(
@@ -735,24 +735,32 @@ def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
 
 def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
                       models, limits: AxisLimits, passes: int, *,
-                      ensemble: MachineEnsemble | None = None,
-                      progress=None) -> LimitedCompensation:
+                      ensemble: MachineEnsemble | None = None, progress=None,
+                      planned: Trajectory | None = None) -> LimitedCompensation:
     """``limited`` improved by ``passes`` passes of learning within ``limits``
     (:func:`~.compensation.within_limits.learn_within_limits`) against the draws of
     ``ensemble`` of the realistic virtual machine running ``controller``
     (:func:`~.simulation.ensemble.ensemble_actual`): every choice is taken on the worst draw,
     and the command kept is nowhere worse than the uncompensated one on every draw, in whole
     and block by block. Above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, segment
-    by segment (:func:`~.compensation.segments.learn_by_segments`)."""
+    by segment (:func:`~.compensation.segments.learn_by_segments`). ``planned``: the
+    trajectory ``limited`` was compensated from; where learning keeps the uncompensated
+    command everywhere, that trajectory is returned as it was planned, without the slow-downs
+    made for the corrections (:func:`~.compensation.within_limits.planned_if_uncompensated`).
+    """
     if limited.reference.n_samples > AT_ONCE_SAMPLES:
-        return learn_by_segments(
+        learned = learn_by_segments(
             limited, machine_obj.kinematics, models, limits,
             lambda t, start: ensemble_actual(t, machine_obj, controller, ensemble, start=start),
             passes,
             progress=progress)
-    actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
-    return learn_within_limits(limited, machine_obj.kinematics, models, limits, actual, passes,
-                               progress=progress)
+    else:
+        actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
+        learned = learn_within_limits(limited, machine_obj.kinematics, models, limits, actual,
+                                      passes, progress=progress)
+    if planned is None:
+        return learned
+    return planned_if_uncompensated(learned, planned, machine_obj.kinematics, models, limits)
 
 
 def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller: str, *,
@@ -784,7 +792,8 @@ def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller
     if learning.passes:
         limited = learn_on_ensemble(limited, machine_obj, learning.controller or controller,
                                     models, axis_limits, learning.passes,
-                                    ensemble=learning.ensemble, progress=learning_progress)
+                                    ensemble=learning.ensemble, progress=learning_progress,
+                                    planned=traj)
     return limited
 
 

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from ..defaults import DEFAULT_MIN_SPEED
-from ..errors import MachineLimitError
+from ..errors import MachineLimitError, notice
 from ..trajectory.feedplan import CHECK_RTOL
 from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
 from ..trajectory.retime import (Slowdown, held_through_stops, retime, slowdowns_of,
@@ -393,6 +393,32 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
                          iterations=0 if report.chosen == "uncompensated" else result.iterations)
     return replace(limited, result=result,
                    check=check_limits(q, reference.ts, limits, t0=float(reference.t[0])))
+
+
+def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, kinematics,
+                             models, limits: AxisLimits) -> LimitedCompensation:
+    """``limited`` as learning left it; but where learning kept the uncompensated command
+    everywhere (``result.learning.chosen``), the planned trajectory ``planned`` (the one
+    ``limited`` was compensated from) as it was planned: its slow-downs were made for the
+    corrections, and with no correction kept they would only cost cycle time (issue 42 item
+    4; LinuxCNC's ``xyzac_switchkins_test_3.ngc``: 4.955 s instead of the planned 4.791 s).
+    Said in one notice. Kept as learning left it where ``planned`` itself breaks a limit."""
+    learning = limited.result.learning
+    if learning is None or learning.chosen != "uncompensated" or not limited.slowdowns:
+        return limited
+    check = check_limits(planned.q, planned.ts, limits, t0=float(planned.t[0]))
+    if not check.ok:
+        return limited
+    notice(f"learning kept the uncompensated commands everywhere: the "
+           f"{len(limited.slowdowns)} slow-down(s) made for the corrections are dropped "
+           f"({limited.added_time:.3g} s)")
+    errors = _predicted(planned, models, {}, kinematics).contour
+    result = replace(limited.result, trajectory=planned, before=errors, after=errors,
+                     iterations=0)
+    return replace(limited, result=result, reference=planned,
+                   line=getattr(planned, "line", None), slowdowns=(),
+                   planned_index=np.arange(planned.n_samples, dtype=float), check=check,
+                   uncompensated=(), kinks=(), smoothed=())
 
 
 def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, models,
