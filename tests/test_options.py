@@ -42,7 +42,15 @@ def test_the_defaults_are_the_command_lines():
     assert LearningOptions().passes == 4 and LearningOptions().draws() == MachineEnsemble()
     assert LimitOptions() == LimitOptions(keep=True, min_speed=0.5)
     assert not ToleranceOptions().search
-    assert (ToleranceOptions().feed_scale_max, ToleranceOptions().feed_scale_min) == (1.0, 0.05)
+    assert (ToleranceOptions().feed_scale_max, ToleranceOptions().feed_scale_min) == (None, 0.05)
+    # the highest feed by the program's format: the programmed feed for an NC program, twice
+    # CL data's (issue 42 item 6); given, it is kept; without a search, 1 whatever the format
+    searching = ToleranceOptions(ContourTolerance(0.01))
+    assert searching.for_format("gcode").feed_scale_max == 1.0
+    assert searching.for_format("clcsv").feed_scale_max == 2.0
+    assert searching.for_format("apt").feed_scale_max == 2.0
+    assert ToleranceOptions(ContourTolerance(0.01), 1.5).for_format("clcsv").feed_scale_max == 1.5
+    assert ToleranceOptions().for_format("clcsv").feed_scale_max == 1.0
     tolerance = ContourTolerance.in_um(10, 0.05)
     assert (tolerance.tip, tolerance.orientation) == (1e-3 * 10, 1e-3 * 0.05)
     assert ContourTolerance.in_um(10).orientation is None

@@ -27,7 +27,7 @@ from .defaults import (BUILTIN_MACHINES, BUILTIN_PATHS, COMPENSATION_METHODS, DE
                        COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                        DEFAULT_CORNER_ORIENTATION_TOLERANCE, DEFAULT_CORNER_TOLERANCE,
                        DEFAULT_DWELL, DEFAULT_FEED,
-                       DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
+                       DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MAX_CL, DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED, DEFAULT_SAFETY, DEFAULT_TRAVEL_LINEAR,
                        DEFAULT_TRAVEL_ROTARY, EXPORT_FORMATS, FIT_TOL_LINEAR, FIT_TOL_ROTARY,
                        GCODE_TOL_LINEAR, GCODE_TOL_ROTARY, LOG_FORMATS, TOOLPATH_FORMATS,
                        builtin_machines, default_max_samples)
@@ -464,12 +464,13 @@ def _add_run_command(commands) -> None:
                           "even the lowest feed misses it, or slowing down does not lower the "
                           "error (friction where an axis stops or creeps: not slowed further), "
                           "say where and exit with an error (see --write-anyway)")
-    run.add_argument("--feed-scale-max", type=_positive_float, default=DEFAULT_FEED_SCALE_MAX,
-                     metavar="K",
+    run.add_argument("--feed-scale-max", type=_positive_float, default=None, metavar="K",
                      help="with --tolerance: the highest feed, K times the programmed feed "
                           "(above 1 where the program's feed was itself conservative; the "
                           "axis limits hold whatever K; default "
-                          f"{DEFAULT_FEED_SCALE_MAX:g}: the programmed feed is the upper bound)")
+                          f"{DEFAULT_FEED_SCALE_MAX:g} for an NC program, its programmed feed "
+                          f"the upper bound, and {DEFAULT_FEED_SCALE_MAX_CL:g} for CL data, "
+                          "whose feed is a CAM system's request)")
     run.add_argument("--feed-scale-min", type=_speed_fraction, default=DEFAULT_FEED_SCALE_MIN,
                      metavar="FRACTION",
                      help="with --tolerance: the lowest feed, as a fraction of the "

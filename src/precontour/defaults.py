@@ -55,9 +55,13 @@ DEFAULT_CHECK_DRAWS = 5
 #: (``--feed-scale-min``): where a contour-error tolerance would need a slower motion, the
 #: tolerance counts as not met there.
 DEFAULT_FEED_SCALE_MIN = 0.05
-#: Default highest feed of ``run --tolerance``, as a multiple of the programmed feed
-#: (``--feed-scale-max``): the programmed feed is an upper bound.
+#: Default highest feed of ``run --tolerance`` for an NC program, as a multiple of the
+#: programmed feed (``--feed-scale-max``): the programmed feed is an upper bound.
 DEFAULT_FEED_SCALE_MAX = 1.0
+#: The same for CL data (issue 42 item 6): a CAM system's CL feed is a plain request, not a
+#: feed a machinist tuned on the machine, so the search may go up to twice it (the axis limits
+#: hold whatever the feed).
+DEFAULT_FEED_SCALE_MAX_CL = 2.0
 #: Peak memory per trajectory sample of the commands a machinist's program goes through
 #: (trajectory, predict, compensate, simulate, run), bytes, with a margin:
 #: ``scripts/measure_memory.py`` measured the growth of peak RSS per sample (built-in ``paper``

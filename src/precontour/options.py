@@ -27,7 +27,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .defaults import (DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MIN,
+from .defaults import (DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MAX_CL,
+                       DEFAULT_FEED_SCALE_MIN,
                        DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED)
 from .errors import InputError, is_whole_number
 from .planning.tolerance import ContourTolerance
@@ -117,8 +118,11 @@ class ToleranceOptions:
         Tool tip (mm) and optionally orientation (rad) (``--tolerance``, given in um and mrad:
         :meth:`ContourTolerance.in_um <precontour.planning.ContourTolerance.in_um>`); None:
         no search, and then the feed scales must keep their defaults.
-    feed_scale_max : float
-        The highest feed, a multiple of the programmed feed (``--feed-scale-max``), > 0.
+    feed_scale_max : float or None
+        The highest feed, a multiple of the programmed feed (``--feed-scale-max``), > 0;
+        None: by the program's format (:meth:`for_format`): 1 for an NC program
+        (:data:`~precontour.defaults.DEFAULT_FEED_SCALE_MAX`), 2 for CL data
+        (:data:`~precontour.defaults.DEFAULT_FEED_SCALE_MAX_CL`).
     feed_scale_min : float
         The lowest feed, a fraction of the programmed feed (``--feed-scale-min``), in
         (0, ``feed_scale_max``].
@@ -128,7 +132,7 @@ class ToleranceOptions:
     """
 
     tolerance: ContourTolerance | None = None
-    feed_scale_max: float = DEFAULT_FEED_SCALE_MAX
+    feed_scale_max: float | None = None
     feed_scale_min: float = DEFAULT_FEED_SCALE_MIN
     write_anyway: bool = False
 
@@ -138,16 +142,28 @@ class ToleranceOptions:
                              f"{type(self.tolerance).__name__}", field="--tolerance")
         for name in ("--feed-scale-max", "--feed-scale-min"):
             value = getattr(self, name[2:].replace("-", "_"))
+            if value is None and name == "--feed-scale-max":
+                continue
             if not (isinstance(value, (int, float, np.floating)) and not isinstance(value, bool)
                     and np.isfinite(value) and value > 0):
                 raise InputError(f"must be positive and finite, got {value!r}", field=name)
         if self.tolerance is None:
-            if self.feed_scale_max != 1.0 or self.feed_scale_min != DEFAULT_FEED_SCALE_MIN:
+            if self.feed_scale_max not in (None, 1.0) \
+                    or self.feed_scale_min != DEFAULT_FEED_SCALE_MIN:
                 raise InputError("--feed-scale-max and --feed-scale-min apply with "
                                  "--tolerance only", field="--feed-scale-max")
-        elif self.feed_scale_min > self.feed_scale_max:
+        elif self.feed_scale_max is not None and self.feed_scale_min > self.feed_scale_max:
             raise InputError(f"the lowest feed scale {self.feed_scale_min:g} is above the "
                              f"highest {self.feed_scale_max:g}", field="--feed-scale-min")
+
+    def for_format(self, format: str) -> "ToleranceOptions":
+        """These options with the highest feed scale decided for a program of ``format``
+        (``"gcode"`` for an NC program, else CL data) where it was left to the format."""
+        if self.feed_scale_max is not None:
+            return self
+        cl = format != "gcode" and self.tolerance is not None
+        return replace(self, feed_scale_max=DEFAULT_FEED_SCALE_MAX_CL if cl
+                       else DEFAULT_FEED_SCALE_MAX)
 
     @property
     def search(self) -> bool:

@@ -554,9 +554,6 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     learning_ensemble = learning.ensemble or ensemble or MachineEnsemble()
     learner = controller if learning.controller is None else learning.controller
     min_speed = limits.min_speed
-    contour_tolerance = feed_options.tolerance
-    feed_scale_max, feed_scale_min = feed_options.feed_scale_max, feed_options.feed_scale_min
-    write_anyway = feed_options.write_anyway
     timings: dict[str, float] = {}
     total = 4
 
@@ -578,6 +575,11 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
                               max_samples=max_samples, format=format,
                               tool_table=tool_table)
+    # the highest feed of the search: the programmed one for an NC program, twice CL data's
+    feed_options = feed_options.for_format(source.format)
+    contour_tolerance = feed_options.tolerance
+    feed_scale_max, feed_scale_min = feed_options.feed_scale_max, feed_options.feed_scale_min
+    write_anyway = feed_options.write_anyway
     step(0, f"plan {program}")
     planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
                                             corner_tolerance=corner_tolerance,
