@@ -586,7 +586,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                                             corner_orientation_tolerance=(
                                                 corner_orientation_tolerance),
                                             max_samples=max_samples)
-    line = getattr(planned, "line", None)
+    line = planned.line
     timings["plan"] = time.perf_counter() - start
 
     start = time.perf_counter()
@@ -610,7 +610,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                                        corner_orientation_tolerance=(
                                            corner_orientation_tolerance),
                                        max_samples=max_samples, feed_scale=feed_scale_max)[0]
-            line = getattr(planned, "line", None)
+            line = planned.line
         def learned(limited):
             # a timing slowed beyond the learning's size is compensated without it
             if not can_learn(limited.reference, machine_obj):
@@ -787,7 +787,7 @@ def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
     axis_limits = AxisLimits.from_machine(machine_obj)
     limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
-                                       line=getattr(traj, "line", None), progress=progress,
+                                       line=traj.line, progress=progress,
                                        min_speed=limits.min_speed, method=method,
                                        iterations=iterations, tol_linear=tol_linear,
                                        tol_rotary=tol_rotary, pass_progress=pass_progress)

@@ -157,4 +157,4 @@ def read_controller_trace(path: str | Path, machine, *, fmt: str | None = None,
     if all(a in log.actual and log.actual[a].size for a in AXES):
         actual = np.column_stack([log.actual[a] for a in AXES])
     return ControllerTrace(t=log.t, command=command, actual=actual,
-                           line=getattr(log, "line", None), source=str(path))
+                           line=log.line, source=str(path))

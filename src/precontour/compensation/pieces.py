@@ -118,7 +118,7 @@ def _longest_stop(q: np.ndarray, ts: float):
 def _slice(traj: Trajectory, start: int, stop: int) -> Trajectory:
     """Samples [start, stop) of ``traj``, with its reference and source lines where it has
     them."""
-    line = getattr(traj, "line", None)
+    line = traj.line
     return Trajectory(traj.t[start:stop], traj.q[start:stop],
                       None if traj.P is None else traj.P[start:stop],
                       None if traj.O is None else traj.O[start:stop],

@@ -224,7 +224,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         q_learned, learning = learn_at_stops(
             traj.q, q_best, traj.ts, machine_actual, errors_of,
             learning_step(traj, reference, kinematics, hold=hold), passes=learning_passes,
-            progress=learning_progress, line=getattr(traj, "line", None),
+            progress=learning_progress, line=traj.line,
             fallbacks=(("tracking-error pre-compensation", hold(q_tracking)),),
             t0=float(t[0]), tail_errors_of=tail_errors_of,
             repeat_actual=getattr(machine_actual, "repeat", None),

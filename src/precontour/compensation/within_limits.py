@@ -416,7 +416,7 @@ def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, 
     result = replace(limited.result, trajectory=planned, before=errors, after=errors,
                      iterations=0)
     return replace(limited, result=result, reference=planned,
-                   line=getattr(planned, "line", None), slowdowns=(),
+                   line=planned.line, slowdowns=(),
                    planned_index=np.arange(planned.n_samples, dtype=float), check=check,
                    uncompensated=(), kinks=(), smoothed=())
 

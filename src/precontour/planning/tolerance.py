@@ -611,7 +611,7 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     if progress is not None:
         progress("as programmed: virtual machine")
     programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
-                                 getattr(programmed, "line", None), exempt_lines)
+                                 programmed.line, exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
                   exempt_lines=exempt_lines, models=models, limits=limits,
                   limits_min_speed=limits_min_speed, iterations=iterations, where=where,
