@@ -549,8 +549,9 @@ def test_run_warns_where_compensation_is_worse_where_it_is_worst(caplog):
     assert worst[1] > 5 * worst[0]                  # measured 6.71 against 0.435 um
     assert plain.draws.worse_in_whole() == ("tip max",)
     assert "warning: the compensated program's tip max on its worst draw" in plain.table()
+    # a warning, not a note: the command line prints "precontour: warning: ..."
     assert any("tip max on its worst draw is above the uncompensated" in r.getMessage()
-               for r in caplog.records)
+               and getattr(r, "label", None) == "warning" for r in caplog.records)
     caplog.clear()
     with caplog.at_level("WARNING", logger="precontour"):
         learned = run_program(source, machine="linuxcnc-xyzac-trt", controller="pid-high",

@@ -20,7 +20,7 @@ from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import NOTICES, InputError, PrecontourError
+from .errors import NOTE, NOTICES, InputError, PrecontourError
 from .parallel import check_jobs, program_executor, using_jobs
 from .toolpath import EXTENSIONS
 from .workflow import GCODE_SUFFIXES, RunOutputs, run_program, write_run_outputs
@@ -64,8 +64,9 @@ class BatchEntry:
     lines_worse: int | None = None
     table: str | None = None
     seconds: float = 0.0
-    #: The notices the run gave (what ``run`` prints on stderr as ``note:``), in order.
-    notices: tuple[str, ...] = ()
+    #: What the run said on the way, in order: (label, message), the label ``note`` or
+    #: ``warning`` (what ``run`` prints on stderr as ``precontour: note: ...``, ``warning``).
+    notices: tuple[tuple[str, str], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -237,7 +238,7 @@ class _Collected(logging.Handler):
 
     def __init__(self):
         super().__init__()
-        self.messages: list[str] = []
+        self.messages: list[tuple[str, str]] = []
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
+        self.messages.append((getattr(record, "label", NOTE), record.getMessage()))

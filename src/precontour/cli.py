@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_USAGE
     notices = logging.StreamHandler(sys.stderr)
-    notices.setFormatter(logging.Formatter("precontour: note: %(message)s"))
+    notices.setFormatter(_NoticeFormat())
     NOTICES.addHandler(notices)
     propagate, NOTICES.propagate = NOTICES.propagate, False
     try:
@@ -71,6 +71,14 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         NOTICES.removeHandler(notices)
         NOTICES.propagate = propagate
+
+
+class _NoticeFormat(logging.Formatter):
+    """``precontour: note: ...``, or ``precontour: warning: ...`` for a warning
+    (:func:`precontour.errors.warning`)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"precontour: {getattr(record, 'label', 'note')}: {record.getMessage()}"
 
 
 def _stopped(exc: BaseException) -> int:
@@ -1262,9 +1270,9 @@ def run_batch_command(args: argparse.Namespace) -> int:
     from .options import LimitOptions
 
     def progress(done: int, total: int, entry) -> None:
-        for note in entry.notices:
+        for label, note in entry.notices:
             named = note if str(entry.job.program) in note else f"{entry.job.program}: {note}"
-            print(f"precontour: note: {named}", file=sys.stderr)
+            print(f"precontour: {label}: {named}", file=sys.stderr)
         print(f"[{done}/{total}] {entry.line()}", flush=True)
 
     result = run_batch(args.programs, args.out_dir, machines=args.machine,

@@ -35,6 +35,18 @@ def notice(message: str) -> None:
     NOTICES.warning(message)
 
 
+#: The label of a notice: ``note`` (something fixed up on the way in) or ``warning`` (a result
+#: the user must look at before using it); the record's ``label`` attribute.
+NOTE, WARNING = "note", "warning"
+
+
+def warning(message: str) -> None:
+    """Warn the user, in one line, about a result to look at before using it (the command
+    line prints ``precontour: warning: ...``; a library user gets a logging record whose
+    ``label`` is :data:`WARNING`)."""
+    NOTICES.warning(message, extra={"label": WARNING})
+
+
 class PrecontourError(Exception):
     """Root of all precontour errors."""
 

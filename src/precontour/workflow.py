@@ -31,7 +31,8 @@ from .compensation.within_limits import (LimitedCompensation, compensate_within_
 from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL,
                        DEFAULT_FEED, EXPORT_FORMATS, default_max_samples)
-from .errors import InputError, MachineLimitError, ToleranceError, is_whole_number, notice
+from .errors import (InputError, MachineLimitError, ToleranceError, is_whole_number, notice,
+                     warning)
 from .files import OutputSet, check_signals
 from .machine.machine_file import Machine, load_machine
 from .parallel import map_ordered
@@ -354,6 +355,13 @@ class RunResult:
         lines = [f"{'contour errors':<22}{'tip max':>10}{'tip mean':>10}{'ori max':>10}"
                  f"{'ori mean':>10}",
                  f"{'':<22}{'um':>10}{'um':>10}{'mrad':>10}{'mrad':>10}"]
+        where = self.place
+        # the draws first: where an axis stops under friction one exact machine's answer is
+        # decided by nanometres, so the median and the worst draw are the result (issue 42)
+        if self.draws is not None:
+            lines += self.draws.table(where, learned=self.limited.result.learning is not None)
+            lines.append("on the machine file's machine alone (draw 0), predicted and "
+                         "simulated:")
         for kind, when, errors in rows:
             s = errors.summary()
             lines.append(f"{kind + ' ' + when:<22}{s['tip_max_um']:10.3f}{s['tip_mean_um']:10.3f}"
@@ -366,9 +374,6 @@ class RunResult:
                          f"mean {_reduction(before.mean(), after.mean())}")
         from .compensation.blocks import MARGINS
 
-        where = self.place
-        if self.draws is not None:
-            lines += self.draws.table(where, learned=self.limited.result.learning is not None)
         lines.append("largest simulated errors, where:")
         lines += ["  " + largest.format() for largest in self.largest_errors()]
         worse = self.worse_lines()
@@ -666,7 +671,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         timings["virtual machine (draws)"] = time.perf_counter() - start
         worse = checked.worse_in_whole()
         if worse:
-            notice(worse_in_whole_message(worse, learned=limited.result.learning is not None))
+            warning(worse_in_whole_message(worse,
+                                           learned=limited.result.learning is not None))
 
     step(3, "write G-code")
     start = time.perf_counter()
