@@ -72,8 +72,12 @@ def _profile(name: str, n_samples: int, top: int) -> None:
     text = io.StringIO()
     stats = pstats.Stats(profile, stream=text)
     stats.sort_stats("cumulative").print_stats("precontour", top)
-    lines = [line for line in text.getvalue().splitlines()
-             if "precontour" in line and "{" not in line]
+    import precontour
+
+    # the package's files named from its folder (precontour/...), wherever it is installed
+    root = str(Path(precontour.__file__).parent.parent) + os.sep
+    lines = [line.replace(root, "") for line in text.getvalue().splitlines()
+             if "precontour" in line and "{" not in line and "List reduced" not in line]
     print(json.dumps({"wall": wall, "cpu": cpu, "lines": lines}))
 
 

@@ -37,6 +37,8 @@ DEFAULT_RUNS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("program", ()),
     ("run", ("4",)),
     ("nearest", ()),
+    ("jobs", ()),
+    ("profile", ("--top", "20")),
 )
 
 INTRO = """# Speed, measured
