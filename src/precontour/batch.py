@@ -170,7 +170,7 @@ def batch_jobs(programs: Sequence[str | Path], out_dir: str | Path, *,
 def run_batch(programs: Sequence[str | Path], out_dir: str | Path, *,
               machines: Sequence[str | Path], controller: str, stream: bool = False,
               commands: bool = False, executor: str | None = None, jobs: int | None = None,
-              progress: Callable[[int, int, BatchEntry], None] | None = None,
+              progress: Callable[[int, int, str], None] | None = None,
               **run_options) -> BatchResult:
     """``run`` on every program of ``programs`` (files, or folders of them) on every machine
     of ``machines`` with ``controller``, each writing its compensated program into
@@ -180,8 +180,9 @@ def run_batch(programs: Sequence[str | Path], out_dir: str | Path, *,
     :func:`~precontour.parallel.jobs`); ``dask://HOST:PORT``, the workers of that Dask
     distributed scheduler. ``run_options``: keywords of
     :func:`~precontour.workflow.run_program` (``tcp``, ``learn``, ``draws``,
-    ``corner_tolerance`` ...), the same for every program. ``progress(done, total, entry)``
-    is called as each program ends, with its :class:`BatchEntry`. A program that fails (bad input, limits it cannot keep, a
+    ``corner_tolerance`` ...), the same for every program. ``progress(done, total, message)``
+    (``run``'s protocol) is called as each program ends, with its line
+    (:meth:`BatchEntry.line`). A program that fails (bad input, limits it cannot keep, a
     tolerance it cannot meet) is an entry with its error; the others go on."""
     unknown = sorted(set(run_options) - RUN_KEYWORDS)
     if unknown:
@@ -201,7 +202,7 @@ def run_batch(programs: Sequence[str | Path], out_dir: str | Path, *,
             i = futures[future]
             entries[i] = future.result()
             if progress is not None:
-                progress(done, len(tasks), entries[i])
+                progress(done, len(tasks), entries[i].line())
     return BatchResult(entries=tuple(entries), seconds=time.perf_counter() - start)
 
 

@@ -1269,11 +1269,8 @@ def run_batch_command(args: argparse.Namespace) -> int:
     from .batch import run_batch
     from .options import LimitOptions
 
-    def progress(done: int, total: int, entry) -> None:
-        for label, note in entry.notices:
-            named = note if str(entry.job.program) in note else f"{entry.job.program}: {note}"
-            print(f"precontour: {label}: {named}", file=sys.stderr)
-        print(f"[{done}/{total}] {entry.line()}", flush=True)
+    def progress(done: int, total: int, message: str) -> None:
+        print(f"[{done}/{total}] {message}", flush=True)
 
     result = run_batch(args.programs, args.out_dir, machines=args.machine,
                        controller=args.controller, stream=args.stream, commands=args.commands,
@@ -1285,6 +1282,10 @@ def run_batch_command(args: argparse.Namespace) -> int:
                        limits=LimitOptions(min_speed=args.min_speed), draws=args.draws,
                        format=args.format, tool_table=args.tool_table)
     print(result.summary().splitlines()[-1])
+    for entry in result.entries:
+        for label, note in entry.notices:
+            named = note if str(entry.job.program) in note else f"{entry.job.program}: {note}"
+            print(f"precontour: {label}: {named}", file=sys.stderr)
     for entry in result.failed:
         print(f"precontour: error: {entry.error} (on {entry.job.machine})", file=sys.stderr)
     return 1 if result.failed else 0
