@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -97,9 +96,9 @@ def _run_stage(name: str, n_samples: int, jobs: int) -> None:
 
 
 def _child(*args: str) -> dict:
-    out = subprocess.run([sys.executable, __file__, *args], check=True, capture_output=True,
-                         text=True, env=dict(os.environ)).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    from bench_pipeline import run_child
+
+    return run_child(__file__, *args)
 
 
 def main() -> None:

@@ -143,11 +143,17 @@ def _run_stage(name: str, n_samples: int) -> None:
                       "duration": traj.duration}))
 
 
-def _child(*args: str) -> dict:
-    env = dict(os.environ)
-    out = subprocess.run([sys.executable, __file__, *args], check=True, capture_output=True,
-                         text=True, env=env).stdout
+def run_child(script: str | Path, *args: str) -> dict:
+    """``python script args`` in a fresh process (this environment); the JSON object its
+    last line of output prints. The benchmarks that measure stage by stage run each stage
+    this way, so that its time and memory are its own."""
+    out = subprocess.run([sys.executable, str(script), *args], check=True,
+                         capture_output=True, text=True, env=dict(os.environ)).stdout
     return json.loads(out.strip().splitlines()[-1])
+
+
+def _child(*args: str) -> dict:
+    return run_child(__file__, *args)
 
 
 def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:

@@ -20,7 +20,6 @@ import io
 import json
 import os
 import pstats
-import subprocess
 import sys
 import tempfile
 import time
@@ -82,9 +81,9 @@ def _profile(name: str, n_samples: int, top: int) -> None:
 
 
 def _child(*args: str) -> dict:
-    out = subprocess.run([sys.executable, __file__, *args], check=True, capture_output=True,
-                         text=True, env=dict(os.environ)).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    from bench_pipeline import run_child
+
+    return run_child(__file__, *args)
 
 
 def main() -> None:
