@@ -819,7 +819,10 @@ def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
         workers = (min(2, os.cpu_count() or 1) if reference.n_samples >= PARALLEL_MIN_SAMPLES
                    else 1)
     if workers < 2:
-        return tuple(map_ordered(lambda run: _virtual_machine_errors(*run), runs))
+        # on threads the machine is read once, for both runs
+        machine_obj = load_machine(spec)
+        return tuple(map_ordered(lambda run: _virtual_machine_errors(machine_obj, *run[1:]),
+                                 runs))
     # forkserver: a clean process, whatever threads (pyarrow, BLAS) this one has started.
     context = multiprocessing.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
@@ -827,9 +830,10 @@ def check_on_virtual_machine(reference: Trajectory, q_compensated: np.ndarray,
         return tuple(f.result() for f in futures)
 
 
-def _virtual_machine_errors(machine: str, controller: str, reference: Trajectory,
+def _virtual_machine_errors(machine: str | Machine, controller: str, reference: Trajectory,
                             q: np.ndarray) -> ContourErrors:
-    machine_obj = load_machine(machine)
+    # a spec in a worker process, which reads the machine itself; the Machine on threads
+    machine_obj = machine if isinstance(machine, Machine) else load_machine(machine)
     q_act = realistic_actual(reference.t, machine_obj, controller)(q)
     # in pieces above AT_ONCE_SAMPLES: whole-program reference curves of a long program
     # were the peak of run's memory
