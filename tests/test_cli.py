@@ -169,15 +169,19 @@ def test_new_commands_bad_inputs(traj_csv, paper_csv, tmp_path, capsys):
 def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, capsys):
     """With --ignore-limits, the linear pass of the library's compensate; by default the
     compensation within the limits (as run's), which on `paper` / pid-low needs no slowing
-    and is then the same linear pass."""
+    and is then the same linear pass; both on the plan given the final rest its corrections
+    need to taper to zero at the programmed end point (0.82 s for pid-low, instead of the
+    0.2 s dwell; issue 42 item 5)."""
     from precontour import load_machine
     from precontour.compensation.precompensate import compensate
+    from precontour.compensation.programmed_end import required_final_rest, with_final_rest
     from precontour.tables import read_trajectory
 
     machine = load_machine("zhang2013")
     traj = read_trajectory(paper_csv)
-    linear = compensate(traj, machine.kinematics,
-                        machine.controller("pid-low").error_models(machine.drives))
+    models = machine.controller("pid-low").error_models(machine.drives)
+    linear = compensate(with_final_rest(traj, required_final_rest(models)),
+                        machine.kinematics, models)
     for options in (["--ignore-limits"], []):
         out = tmp_path / f"comp{len(options)}.csv"
         assert main(["compensate", str(paper_csv), "--controller", "pid-low", "--learn", "0",
@@ -185,7 +189,9 @@ def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, cap
         printed = capsys.readouterr().out
         assert "learned against" not in printed
         assert ("within the machine's limits: not slowed" in printed) == (not options)
-        assert np.array_equal(read_trajectory(out).q, linear.trajectory.q)
+        q = read_trajectory(out).q
+        assert np.array_equal(q, linear.trajectory.q)
+        assert np.array_equal(q[-1], traj.q[-1])      # the programmed end point
 
 
 def test_compensate_keeps_the_limits_so_export_takes_its_output(tmp_path, capsys):

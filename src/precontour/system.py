@@ -113,7 +113,9 @@ class Compensation:
         The compensated axis commands, with the reference they were computed for.
     reference : Trajectory
         The reference on the commands' timing: the input, or the input slowed down locally
-        where the limits asked for it (``slowdowns``).
+        where the limits asked for it (``slowdowns``), with a longer final rest where its own
+        was too short for the corrections to taper to zero at the programmed end point
+        (:func:`~precontour.compensation.programmed_end.with_final_rest`).
     before, after : ContourErrors
         Predicted contour errors of the uncompensated and the compensated commands.
     passes : int
@@ -239,7 +241,11 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
                             learning=result.learning, within_limits=True,
                             left_out=limited.uncompensated, learning_controller=learner)
     from .compensation.pieces import compensate_program
+    from .compensation.programmed_end import required_final_rest, with_final_rest
 
+    # the final rest the corrections need to taper to zero at the programmed end point (the
+    # limits' route gives it too, compensate_keeping_limits)
+    trajectory = with_final_rest(trajectory, required_final_rest(servo.models))
     machine_model = {}
     if learn:
         from .simulation.ensemble import ensemble_actual

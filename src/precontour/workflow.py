@@ -26,6 +26,7 @@ import numpy as np
 from .compensation.blocks import Judgement
 from .compensation.pieces import AT_ONCE_SAMPLES, contour_errors_program
 from .compensation.segments import learn_by_segments
+from .compensation.programmed_end import required_final_rest, with_final_rest
 from .compensation.within_limits import (LimitedCompensation, compensate_within_limits,
                                          learn_within_limits, planned_if_uncompensated)
 from .defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
@@ -290,6 +291,10 @@ class RunResult:
     draws: "DrawCheck | None" = None
     #: The source's format (``"gcode"``, ``"clcsv"``, ``"apt"``); None: from its extension.
     source_format: str | None = None
+    #: Seconds of final rest added to the plan (in ``planned``) so that the corrections taper
+    #: to zero and the program ends at its programmed end point
+    #: (:func:`~.compensation.programmed_end.with_final_rest`); 0 where its dwell sufficed.
+    final_rest_added: float = 0.0
 
     @property
     def place(self) -> str:
@@ -386,7 +391,7 @@ class RunResult:
         else:
             lines.append(f"no {where} worse than uncompensated (beyond {MARGINS}), simulated")
         duration = self.commands.duration
-        planned = self.planned.duration
+        planned = self.planned.duration - self.final_rest_added
         slow = self.limited.slowdowns
         learning = self.limited.result.learning
         if learning is not None:
@@ -401,6 +406,9 @@ class RunResult:
                 if len(fallback.blocks) > 10:
                     lines.append(f"    ... and {len(fallback.blocks) - 10} more blocks")
         lines.append(f"duration {duration:.3f} s (planned {planned:.3f} s"
+                     + (f"; +{self.final_rest_added:.3f} s of final rest, for the corrections "
+                        "to taper to zero at the programmed end point"
+                        if self.final_rest_added > 0 else "")
                      + (f"; slowed in {len(slow)} window(s), +{self.limited.added_time:.3f} s"
                         if slow else "; not slowed") + ")")
         for s in slow[:10]:
@@ -591,6 +599,12 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                                             corner_orientation_tolerance=(
                                                 corner_orientation_tolerance),
                                             max_samples=max_samples)
+    # a final rest long enough for the corrections to taper to zero (the compensated program
+    # ends at its programmed end point): the controller holds the last command anyway
+    end_rest = required_final_rest(models)
+    as_planned = planned.n_samples
+    planned = with_final_rest(planned, end_rest)
+    final_rest_added = (planned.n_samples - as_planned) * planned.ts
     line = planned.line
     timings["plan"] = time.perf_counter() - start
 
@@ -610,11 +624,10 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         programmed = planned
         if feed_scale_max != 1.0:
             step(1, f"plan {program} at {feed_scale_max:g} x the programmed feed")
-            planned = plan_run_program(source, machine_obj, dwell=dwell,
-                                       corner_tolerance=corner_tolerance,
-                                       corner_orientation_tolerance=(
-                                           corner_orientation_tolerance),
-                                       max_samples=max_samples, feed_scale=feed_scale_max)[0]
+            planned = with_final_rest(plan_run_program(
+                source, machine_obj, dwell=dwell, corner_tolerance=corner_tolerance,
+                corner_orientation_tolerance=corner_orientation_tolerance,
+                max_samples=max_samples, feed_scale=feed_scale_max)[0], end_rest)
             line = planned.line
         def learned(limited):
             # a timing slowed beyond the learning's size is compensated without it
@@ -695,7 +708,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
                      stream=None if outputs is None else outputs.stream, feed=feed,
-                     draws=checked, source_format=source.format)
+                     draws=checked, source_format=source.format,
+                     final_rest_added=final_rest_added)
 
 
 def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
@@ -792,6 +806,9 @@ def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller
     learning = learning_options(learn)
     models = machine_obj.controller(controller).error_models(machine_obj.drives)
     axis_limits = AxisLimits.from_machine(machine_obj)
+    # a final rest long enough for the corrections to taper to zero, so that the commands end
+    # at the programmed end point (the controller holds the last command after them anyway)
+    traj = with_final_rest(traj, required_final_rest(models))
     limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
                                        line=traj.line, progress=progress,
                                        min_speed=limits.min_speed, method=method,

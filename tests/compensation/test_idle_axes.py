@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from precontour.compensation.idle_axes import (hold_idle_axes, hold_resting_axes, idle_axes,
                                               resting_axes)
 from precontour.compensation.precompensate import compensate
+from precontour.compensation.programmed_end import final_rest_start
 from precontour.prediction.contour import ReferencePath, contour_errors
 from precontour.simulation.virtual_machine import REALISTIC, simulate
 from precontour.trajectory.builtin_paths import builtin_path
@@ -58,16 +61,39 @@ def test_quantised_encoder_circle_not_made_worse(machine, circle):
     """pid-high on the realistic machine with a 0.1 um / 1 urad encoder. The circle never
     moves X; the linear pass asks X for nanometres, which switch the friction feed-forward on
     at a resting axis the encoder cannot see move: the tip ends up several times further off
-    than uncompensated. Held at its reference, X is exactly the reference command and the
-    tip maximum stays near the uncompensated one while the mean falls."""
+    than uncompensated. Held at its reference, X is exactly the reference command and, during
+    the motion (up to the final rest), the tip maximum stays near the uncompensated one while
+    the mean falls: measured 43.64 um loose, 0.263 held, 3.358 uncompensated (means 7.46,
+    0.022, 0.946 um).
+
+    The final rest is judged apart (issue 42 item 5): the held command's corrections creep
+    through the rest (the friction feed-forward on) and stop at the programmed end point,
+    where C, held off by static friction, slips as the feed-forward switches off. Before the
+    end taper the command crept to the program's end and the slip came after it, with the
+    controller holding the last command: 11.29 um 30 ms after the program (0.537 um within
+    it). With the taper it comes 10 ms before the end: 7.13 um within the program, 9.45 um at
+    most over 0.5 s of holding after it. Learning against the machine handles that slip."""
     assert np.ptp(circle.q[:, 0]) < 1e-9
     models = machine.controller("pid-high").error_models(machine.drives)
     reference = ReferencePath.from_trajectory(circle)
     run = dict(REALISTIC, encoder_resolution=TOL * [1, 1, 1, 10, 10])
+    rest = final_rest_start(circle.q)
+    n, held_after = circle.n_samples, 500
+    index = np.r_[np.arange(n), np.full(held_after, n - 1)]
+    t = circle.t[0] + np.arange(n + held_after) * circle.ts
+    settling = ReferencePath.from_trajectory(replace(circle, t=t, q=circle.q[index],
+                                                     P=circle.P[index], O=circle.O[index]))
 
     def tip(q):
         sim = simulate(circle.t, q, machine, "pid-high", **run)
-        return contour_errors(reference, sim.q_act, machine.kinematics).summary()
+        errors = contour_errors(reference, sim.q_act, machine.kinematics)
+        return {"tip_max_um": 1e3 * errors.tip[:rest].max(),
+                "tip_mean_um": 1e3 * errors.tip[:rest].mean()}
+
+    def settled_max(q):
+        """Max tip error (um) over the program and 0.5 s of the last command held."""
+        sim = simulate(t, q[index], machine, "pid-high", **run)
+        return 1e3 * contour_errors(settling, sim.q_act, machine.kinematics).tip.max()
 
     before = tip(circle.q)
     results = {hold: compensate(circle, machine.kinematics, models, reference=reference,
@@ -81,3 +107,4 @@ def test_quantised_encoder_circle_not_made_worse(machine, circle):
     assert worse["tip_max_um"] > 2 * before["tip_max_um"]
     assert fixed["tip_max_um"] < 1.2 * before["tip_max_um"]
     assert fixed["tip_mean_um"] < 0.2 * before["tip_mean_um"]
+    assert settled_max(held) < 10.0

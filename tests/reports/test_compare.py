@@ -20,6 +20,7 @@ from precontour import cli
 from precontour.reports import compare, compare_report
 from precontour.compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
                                      compensate)
+from precontour.compensation.programmed_end import end_at_programmed_end
 from precontour.prediction.contour import ReferencePath, contour_errors
 from precontour.machine.drives import AXES
 from precontour.errors import InputError, MachineFileError
@@ -248,7 +249,10 @@ def test_tracking_baseline_adds_the_predicted_tracking_errors(cli_run, machine):
         models = machine.controller(name).error_models(machine.drives)
         e = predict_tracking(traj.t, traj.q, models, tol_linear=COMPENSATION_TOL_LINEAR,
                              tol_rotary=COMPENSATION_TOL_ROTARY)(traj.t)
-        np.testing.assert_allclose(result.run(name, "tracking").commands.q, traj.q + e,
+        # its corrections tapered to zero over the final rest, ending at the programmed end
+        # (issue 42 item 5)
+        np.testing.assert_allclose(result.run(name, "tracking").commands.q,
+                                   end_at_programmed_end(traj.q, traj.q + e, traj.ts),
                                    rtol=0, atol=1e-12)
 
 

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from ..compensation.programmed_end import end_at_programmed_end
 from ..errors import InputError
 from ..prediction.contour import ContourErrors, ReferencePath
 from .blocks import block_starts
@@ -214,4 +215,6 @@ def commands_learned_from(servo, reference: ControllerTrace,
     step = inverse_model_step(servo, error, reference.period)
     commands = reference.command.copy()
     commands[span] = measured.commands + step[span]
-    return commands
+    # the controller holds the last command after the program: where the span reaches the
+    # trace's end, the update tapers to zero over the final rest (issue 42 item 5)
+    return end_at_programmed_end(reference.command, commands, reference.period)

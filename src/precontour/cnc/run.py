@@ -261,12 +261,13 @@ def block_lateness(timing: ControllerTrace, run: ControllerTrace, move_lines) ->
 
 
 def _predicted(servo, timing: ControllerTrace, method: str) -> np.ndarray:
-    from ..system import compensate
+    from ..compensation.pieces import compensate_program
 
-    result = compensate(servo, timing.reference(servo.kinematics), method=method,
-                        limits=False, learn=0)
-    commands = result.commands.q
-    if commands.shape != timing.command.shape:   # pragma: no cover - limits=False keeps it
+    # at the trace's own timing (the overlay adds to the commands the controller plans), its
+    # corrections tapered within the trace's final rest
+    commands = compensate_program(timing.reference(servo.kinematics), servo.kinematics,
+                                  servo.models, method=method).trajectory.q
+    if commands.shape != timing.command.shape:   # pragma: no cover - compensate_program keeps it
         raise RuntimeError("the compensation changed the trace's timing")
     return commands
 

@@ -61,3 +61,9 @@ def taper_corrections(q_planned: np.ndarray, q_compensated: np.ndarray, over: np
     q[whole] = q_planned[whole]
     edges = np.flatnonzero(np.diff(np.r_[0, cut.astype(np.int8), 0]))
     return q, list(zip(edges[::2], edges[1::2] - 1))
+
+
+def c2_step(x: np.ndarray) -> np.ndarray:
+    """C2 step from 0 (x <= 0) to 1 (x >= 1): 6x^5 - 15x^4 + 10x^3."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))

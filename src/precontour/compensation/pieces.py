@@ -234,7 +234,9 @@ def compensate_pieces(read, n_samples: int, ts: float, kinematics,
     def one(piece):
         result = compensate(read(piece.start, piece.stop), kinematics, models, method=method,
                             iterations=iterations, tol_linear=tol_linear,
-                            tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle)
+                            tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle,
+                            # only the last piece ends where the program does
+                            programmed_end=piece.stop == n_samples)
         keep = slice(piece.keep_start - piece.start, piece.keep_stop - piece.start)
         return piece, CompensationResult(
             trajectory=_slice(result.trajectory, keep.start, keep.stop),

@@ -28,6 +28,7 @@ from ..machine.drives import LinearErrorModel
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
 from .idle_axes import hold_idle_axes, hold_resting_axes
+from .programmed_end import end_at_programmed_end
 from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
 
 # METHODS and COMPENSATION_TOL_* (the spline fit tolerances when compensating, ten times finer
@@ -95,7 +96,8 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
                progress=None, min_passes: int = 0, machine_actual: MachineActual | None = None,
                learning_passes: int = DEFAULT_LEARNING_PASSES,
-               learning_progress=None, hold_idle: bool = True) -> CompensationResult:
+               learning_progress=None, hold_idle: bool = True,
+               programmed_end: bool = True) -> CompensationResult:
     """Pre-compensate the axis commands of ``traj`` (which must carry its reference P, O).
 
     Parameters
@@ -145,6 +147,11 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         within the fit tolerance (``tol_linear``, ``tol_rotary``), at its reference command
         (:mod:`precontour.compensation.idle_axes`: nanometre commands on a resting axis
         switch friction feed-forward on).
+    programmed_end : bool
+        End at the reference's last sample: the corrections taper to zero over its final
+        rest (:func:`~.programmed_end.end_at_programmed_end`), as the controller holds the
+        last command after the program. False only for a stretch of a longer trajectory
+        whose end is not the program's (pieces, re-compensated windows).
     """
     if method not in METHODS:
         raise ValueError(f"unknown compensation method {method!r}; choose one of "
@@ -185,6 +192,11 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     def tail_errors_of(q_actual, first):
         return reference.errors(*kinematics.forward(q_actual), t=reference.t[first:])
 
+    def ended(q):
+        # the controller holds the last command after the program: each pass's commands end
+        # at the programmed end point, their corrections tapered over the final rest
+        return end_at_programmed_end(traj.q, q, traj.ts) if programmed_end else q
+
     q_cmd = traj.q
     q_act = predict(q_cmd)
     # axis tracking-error pre-compensation (spec section 7's baseline): a local fallback of
@@ -199,7 +211,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
             q_new = q_cmd + (traj.q - q_act)
         else:
             q_new = _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known)
-        q_cmd = q_new
+        q_cmd = ended(q_new)
         q_act = predict(q_cmd)
         after, known = searched(q_act)
         history.append(after.summary())
@@ -215,7 +227,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     def hold(q):
         return hold_idle_axes(traj.q, q, idle_tolerance) if hold_idle else q
 
-    q_held = hold(q_best)
+    q_held = ended(hold(q_best))
     if q_held is not q_best:
         q_best, after_best = q_held, errors_of(predict(q_held))
     # ---- hook: stops and reversals under friction (compensation/stops.py) ----
@@ -225,12 +237,14 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
             traj.q, q_best, traj.ts, machine_actual, errors_of,
             learning_step(traj, reference, kinematics, hold=hold), passes=learning_passes,
             progress=learning_progress, line=traj.line,
-            fallbacks=(("tracking-error pre-compensation", hold(q_tracking)),),
+            fallbacks=(("tracking-error pre-compensation", ended(hold(q_tracking))),),
             t0=float(t[0]), tail_errors_of=tail_errors_of,
             repeat_actual=getattr(machine_actual, "repeat", None),
             variants=(("resting axes held",
                        lambda q: hold_resting_axes(traj.q, q, idle_tolerance)),)
-            if hold_idle else ())
+            if hold_idle else (),
+            # every command tried is run, judged and kept ending at the programmed end
+            finish=ended if programmed_end else None)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":

@@ -113,7 +113,7 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
             progress=None if progress is None else
             (lambda text, summary, label=label: progress(label + text, summary)),
             scored=(first, stop), project=project, update=update, local=local,
-            settle_delays=settle_delays)
+            settle_delays=settle_delays, programmed_end=piece.keep_stop >= n)
         q[a:b] = q_kept if project is None else project(q_kept)
         reports.append((report, stop - first, b - a, label))
     report = join_reports(reports, n)

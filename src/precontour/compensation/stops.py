@@ -218,7 +218,8 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    local: bool = True, t0: float = 0.0,
                    tail_errors_of=None, repeat_actual: MachineActual | None = None,
                    variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
-                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS
+                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS,
+                   finish: Callable[[np.ndarray], np.ndarray] | None = None
                    ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
@@ -303,6 +304,13 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         it is neither made to fall back locally (mending it would spend a fallback's
         judgements on a command that only refines one the fallback already tries) nor
         another's fallback in a block.
+    finish : callable, optional
+        The command in fact run for each command learning tries, ``finish(q)`` (e.g. its
+        corrections tapered to the programmed end point,
+        :func:`~.programmed_end.end_at_programmed_end`); it must give ``q_reference`` itself
+        back. Every run on the machine model (so every judgement, fallback and update) and
+        every ``admissible`` check sees the finished command, and the command returned is
+        the finished one kept: what was judged is what is returned.
 
     Returns
     -------
@@ -312,6 +320,12 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     """
     if passes < 0:
         raise ValueError(f"learning passes must be >= 0, got {passes}")
+    finished = (lambda q: q) if finish is None else finish
+    if admissible is not None and finish is not None:
+        admissible_as_given = admissible
+
+        def admissible(q):
+            return admissible_as_given(finished(q))
     if update not in UPDATES:
         raise ValueError(f"unknown learning update {update!r}; choose one of "
                          f"{', '.join(UPDATES)}")
@@ -321,11 +335,12 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
     draws = 0
 
     def run(q, model=machine_actual):
-        """The machine model's actual motions of ``q``, shape (D, N, 5), or None when ``q``
-        or a motion is not finite (a diverging update is simply not kept)."""
+        """The machine model's actual motions of ``q`` (finished), shape (D, N, 5), or None
+        when ``q`` or a motion is not finite (a diverging update is simply not kept)."""
         nonlocal runs, draws
         if not np.all(np.isfinite(q)):
             return None
+        q = finished(q)
         motion = np.asarray(model(q), dtype=float)
         if motion.ndim == 2:
             motion = motion[None]
@@ -645,6 +660,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                 fallback = next((f for e, f in repaired if e[1] is kept[1]), None)
         fallback_runs = runs - runs_before
     chosen, q_kept, judged = kept
+    q_kept = finished(q_kept)
     report = LearningReport(chosen=chosen.label, uncompensated=reference.worst,
                             linear=linear.summary, kept=chosen.summary,
                             candidates=tuple(c for c, _, _ in entries), machine_runs=runs,

@@ -48,6 +48,7 @@ from .blend import taper_corrections, taper_weight
 from .blocks import ORIENTATION_MARGIN, TIP_MARGIN, margin_bound
 from .idle_axes import hold_idle_axes, hold_resting_axes
 from .pieces import compensate_program, predict_program
+from .programmed_end import end_at_programmed_end
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
 from .stops import (LIMITED_SMOOTHING, SETTLE_DELAYS, LearningReport, MachineActual,
@@ -191,6 +192,10 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     q = result.trajectory.q
     kinks, smoothed = [], []
     for round_ in range(1, max_rounds + 1):
+        # every route's commands end at the programmed end point (the compensation's own
+        # already do, and so do the blends below, of commands that end there): this keeps
+        # it for any other, before the limit check judges the taper too
+        q = end_at_programmed_end(current.q, q, ts)
         check = check_limits(q, ts, limits, t0=t0)
         first_check = first_check or check
         if not check.ok and method == "contour":
@@ -311,8 +316,11 @@ def _merged(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ..
 
 def _tracking(reference: Trajectory, models, options) -> np.ndarray:
     """Axis tracking-error pre-compensation of ``reference``: each command plus its own
-    predicted tracking error (spec section 7's baseline)."""
-    return reference.q + _predicted(reference, models, options).e
+    predicted tracking error (spec section 7's baseline), ending at the programmed end point
+    (:func:`~.programmed_end.end_at_programmed_end`), so that blends into it keep the end."""
+    return end_at_programmed_end(reference.q, reference.q + _predicted(reference, models,
+                                                                       options).e,
+                                 reference.ts)
 
 
 def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck,
@@ -426,8 +434,8 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                    line: np.ndarray | None = None, progress=None,
                    scored: tuple[int, int] | None = None, project=None,
                    path: ReferencePath | None = None, update: str = "mean", local: bool = True,
-                   settle_delays: tuple[float, ...] = SETTLE_DELAYS
-                   ) -> tuple[np.ndarray, LearningReport]:
+                   settle_delays: tuple[float, ...] = SETTLE_DELAYS,
+                   programmed_end: bool = True) -> tuple[np.ndarray, LearningReport]:
     """The learning of :func:`learn_within_limits` on ``reference`` from the commands
     ``q_start``: the command kept and the report (:func:`~.stops.learn_at_stops`).
 
@@ -439,7 +447,9 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     uncompensated ``reference.q`` itself excepted. The command returned is not projected.
     ``path``: the reference's curves, where already built. ``update``, ``local``,
     ``settle_delays``: as for :func:`~.stops.learn_at_stops` (a segment that does not hold the
-    program's final dwell tries no settled tails).
+    program's final dwell tries no settled tails). ``programmed_end``: ``reference`` ends where
+    the program does, so every command learning tries, and the one kept, ends at its last
+    sample (:func:`~.programmed_end.end_at_programmed_end`; False for an earlier segment).
     """
     ts, t0 = reference.ts, float(reference.t[0])
     path = ReferencePath.from_trajectory(reference) if path is None else path
@@ -456,6 +466,9 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
         return check_limits(project(q), ts, limits, t0=t0).ok
 
     idle_tolerance = compensation_axis_tolerances()
+
+    def ended(q):
+        return end_at_programmed_end(reference.q, q, ts)
 
     def hold(q):
         return hold_idle_axes(reference.q, q, idle_tolerance)
@@ -474,7 +487,8 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def hold_resting(q):
         return hold_resting_axes(reference.q, q, idle_tolerance)
 
-    tracking = project(hold(reference.q + _predicted(reference, models, {}).e))
+    tracking = hold(reference.q + _predicted(reference, models, {}).e)
+    tracking = project(ended(tracking) if programmed_end else tracking)
     return learn_at_stops(reference.q, q_start, ts, machine, errors_of,
                           learning_step(reference, path, kinematics, hold=hold),
                           passes=passes,
@@ -484,7 +498,10 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
                           t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
                           settle_delays=settle_delays,
                           repeat_actual=getattr(machine_actual, "repeat", None),
-                          variants=(("resting axes held", hold_resting),))
+                          variants=(("resting axes held", hold_resting),),
+                          # every command tried is run, judged and kept ending at the
+                          # programmed end (a segment's own end is not the program's)
+                          finish=ended if programmed_end else None)
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):
@@ -561,8 +578,9 @@ def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previo
         sub = Trajectory(t=reference.t[part], q=reference.q[part], P=reference.P[part],
                          O=reference.O[part])
         new = compensate(sub, kinematics, models, method=method, iterations=passes,
-                         min_passes=passes, tol_linear=tol_linear,
-                         tol_rotary=tol_rotary).trajectory.q
+                         min_passes=passes, tol_linear=tol_linear, tol_rotary=tol_rotary,
+                         # only the stretch that reaches the program's end ends where it does
+                         programmed_end=hi_k == n - 1).trajectory.q
         index = np.arange(lo_k, hi_k + 1)
         up = _ramp((index - (a_k - G - B)) / B) if lo_k > 0 else np.ones(index.size)
         down = _ramp(((b_k + L + B) - index) / B) if hi_k < n - 1 else np.ones(index.size)

@@ -35,6 +35,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from ..compensation.pieces import contour_errors_program
+from ..compensation.programmed_end import required_final_rest, with_final_rest
 from ..compensation.within_limits import (LimitedCompensation, MIN_SPEED,
                                           compensate_within_limits)
 from ..defaults import DEFAULT_FEED_SCALE_MIN
@@ -606,6 +607,14 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     searches' and the programmed errors'; ``models``, ``limits``, ``limits_min_speed``,
     ``iterations``, ``where``, ``max_rounds``: both searches' (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
+    # both plans with the final rest the compensated commands need to end at the programmed
+    # end point (:mod:`~..compensation.programmed_end`; ``run`` plans it already)
+    rest = required_final_rest(machine.controller(controller).error_models(machine.drives)
+                               if models is None else models)
+    n = planned.n_samples
+    planned, programmed = with_final_rest(planned, rest), with_final_rest(programmed, rest)
+    if line is not None and len(line) == n < planned.n_samples:
+        line = np.concatenate([line, np.full(planned.n_samples - n, line[-1])])
     if min_speed is None:
         min_speed = min(1.0, DEFAULT_FEED_SCALE_MIN / feed_scale_max)
     if progress is not None:

@@ -21,6 +21,7 @@ from scipy import signal
 
 from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
+from ..compensation.programmed_end import required_final_rest, with_final_rest
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from .demo import MACHINE_MODELS
 from .progress import Progress, StepCounter
@@ -589,6 +590,11 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     traj, source = _load_source(builtin, trajectory, machine)
 
     linear = ((ppi,) if ppi else ()) + pids
+    if linear:
+        # the final rest the slowest compensated loop needs to end at the programmed end point
+        # (every command judged on the same plan)
+        traj = with_final_rest(traj, max(required_final_rest(
+            controllers[name].error_models(machine.drives)) for name in linear))
     total = (1 if sliding else 0) + 5 * len(linear) + 3 * len(model_errors)
     step = StepCounter(progress, total)
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..trajectory.builtin_paths import BUILTIN_PATHS, builtin_path
 from ..compensation.precompensate import CompensationResult, compensate
+from ..compensation.programmed_end import required_final_rest, with_final_rest
 from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
@@ -184,7 +185,11 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     summaries, cases = {}, []
     for path in paths:
         step(f"{path}: trajectory")
-        traj = generate_trajectory(builtin_path(path), machine, ts=machine.servo_period)
+        # with the final rest the slowest compensated loop needs to end at the programmed end
+        # point (both controllers judged on the same plan)
+        traj = with_final_rest(generate_trajectory(builtin_path(path), machine,
+                                                   ts=machine.servo_period),
+                               max(required_final_rest(models[name]) for name in controllers))
         summaries[path] = summarize(traj, machine)
         reference = ReferencePath.from_trajectory(traj)
         for name in controllers:
