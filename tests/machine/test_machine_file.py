@@ -134,7 +134,7 @@ def test_reserved_g_codes_are_the_readers_own():
     """RESERVED_G (machine package: no import of the reader) lists the G codes the reader
     reads with a meaning, less those it reads as TCP switches."""
     from precontour.machine.gcode import BUILTIN_TCP_OFF_G, BUILTIN_TCP_ON_G, RESERVED_G
-    from precontour.toolpath.gcode import _KNOWN_G
+    from precontour.toolpath._gcode_codes import _KNOWN_G
     assert RESERVED_G == _KNOWN_G - BUILTIN_TCP_ON_G - BUILTIN_TCP_OFF_G
 
 

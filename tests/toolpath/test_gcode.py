@@ -865,8 +865,8 @@ def test_parameters_in_passthrough_lines_are_evaluated(machine, tmp_path):
 
 
 def test_a_runaway_loop_ends_with_an_error(machine, tmp_path, monkeypatch):
-    import precontour.toolpath.gcode as gcode
-    monkeypatch.setattr(gcode, "MAX_LOOP_ITERATIONS", 1000)
+    import precontour.toolpath._gcode_language as language
+    monkeypatch.setattr(language, "MAX_LOOP_ITERATIONS", 1000)
     text = "G0 X0 Y0 Z0 A0 C0\n#1 = 0\no7 while [#1 GE 0]\n  #1 = [#1 + 1]\no7 endwhile\n"
     with pytest.raises(ProgramError, match=r"prog.ngc, line 3, word 'O7WHILE': o7 while ran "
                                            r"1000 times: a runaway loop\?"):
@@ -874,7 +874,7 @@ def test_a_runaway_loop_ends_with_an_error(machine, tmp_path, monkeypatch):
     text = "G0 X0 Y0 Z0 A0 C0\no8 do\n  G91 G1 X0.001 F60\no8 while [1]\n"
     with pytest.raises(ProgramError, match=r"line 2, word 'O8DO': o8 do ran 1000 times"):
         read(tmp_path, machine, text)
-    assert gcode.MAX_LOOP_ITERATIONS == 1000
+    assert language.MAX_LOOP_ITERATIONS == 1000
 
 
 def test_fanuc_subprogram_repeat_forms(machine, tmp_path):

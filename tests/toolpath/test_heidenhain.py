@@ -15,7 +15,7 @@ import pytest
 from precontour.errors import InputError, ProgramError
 from precontour.machine.machine_file import load_machine
 from precontour.toolpath import read_program, read_toolpath_report, toolpath_format
-from precontour.toolpath.gcode import _euler_zxz
+from precontour.toolpath._gcode_codes import _euler_zxz
 from precontour.toolpath.heidenhain import euler_zxz_angles, spatial_rotation
 from precontour.trajectory import program_trajectory, summarize
 
