@@ -39,7 +39,7 @@ from docpage import DOCS, markdown_table, stamp, write_page  # noqa: E402
 from precontour import builtin_path, load_machine  # noqa: E402
 from precontour.cli import main  # noqa: E402
 from precontour.toolpath import read_program  # noqa: E402
-from precontour.toolpath.linuxcnc_run import linuxcnc_unavailable  # noqa: E402
+from precontour.linuxcnc.run import linuxcnc_unavailable  # noqa: E402
 
 from closed_loop_measure import (SETTLE, errors, late, line_maxima, line_maxima_of,  # noqa: E402
                                  read_log, worse_lines)

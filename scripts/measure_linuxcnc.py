@@ -3,8 +3,8 @@
     PYTHONPATH=src python scripts/measure_linuxcnc.py [--long] [--out DIR]
 
 Needs LinuxCNC 2.9 (linuxcnc-uspace) and, as root, the unprivileged user lcnc (see
-src/precontour/toolpath/linuxcnc_run.py). Writes the configurations with
-``precontour.toolpath.linuxcnc.write_linuxcnc_config``, runs ``precontour run`` (the library
+src/precontour/linuxcnc/run.py). Writes the configurations with
+``precontour.linuxcnc.config.write_linuxcnc_config``, runs ``precontour run`` (the library
 call) on the programs, runs the G-code on LinuxCNC's interpreter, planner and motion
 controller and the stream through halstreamer, and prints markdown tables:
 
@@ -41,8 +41,8 @@ sys.path.insert(0, str(ROOT / "tests" / "linuxcnc"))
 from precontour import load_machine  # noqa: E402
 from precontour.tables import read_trajectory  # noqa: E402
 from precontour.toolpath import read_program  # noqa: E402
-from precontour.toolpath.linuxcnc import write_linuxcnc_config  # noqa: E402
-from precontour.toolpath.linuxcnc_run import (block_timing, linuxcnc_unavailable,  # noqa: E402
+from precontour.linuxcnc.config import write_linuxcnc_config  # noqa: E402
+from precontour.linuxcnc.run import (block_timing, linuxcnc_unavailable,  # noqa: E402
                                               run_gcode, run_stream)
 from precontour.trajectory.builtin_paths import builtin_path  # noqa: E402
 from precontour.workflow import RunOutputs, run_program, write_run_outputs  # noqa: E402

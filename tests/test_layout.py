@@ -9,7 +9,8 @@ import precontour
 
 PACKAGE = Path(precontour.__file__).parent
 #: Pipeline order: a module may import from its own stage or an earlier one, never a later one.
-STAGES = ("defaults", "errors", "files", "parallel", "kernels", "piecewise", "machine", "toolpath", "trajectory",
+STAGES = ("defaults", "errors", "files", "parallel", "kernels", "piecewise", "machine", "linuxcnc",
+          "toolpath", "trajectory",
           "tables",
           "prediction", "compensation", "simulation", "planning", "options", "identification",
           "workflow", "batch",

@@ -1348,7 +1348,7 @@ def format_machines_table(machines) -> str:
 
 def run_linuxcnc_config(args: argparse.Namespace) -> int:
     from .machine.machine_file import load_machine
-    from .toolpath.linuxcnc import check_config_folder, write_linuxcnc_config
+    from .linuxcnc.config import check_config_folder, write_linuxcnc_config
 
     check_config_folder(args.output)
     machine = load_machine(args.machine)

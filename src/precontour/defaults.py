@@ -159,3 +159,7 @@ def builtin_machines() -> tuple[BuiltinMachine, ...]:
             controllers=tuple((key, table["type"]) for key, table in data["controllers"].items()),
             servo_period=float(data.get("servo_period", DEFAULT_SERVO_PERIOD))))
     return tuple(machines)
+
+#: The release that removes the former spellings (options' keyword names, module paths); until
+#: then they work and warn (DeprecationWarning).
+FORMER_SPELLINGS_REMOVED_IN = "0.2.0"

@@ -28,8 +28,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .defaults import (DEFAULT_FEED_SCALE_MAX, DEFAULT_FEED_SCALE_MAX_CL,
-                       DEFAULT_FEED_SCALE_MIN,
-                       DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED)
+                       DEFAULT_FEED_SCALE_MIN, DEFAULT_LEARNING_PASSES, DEFAULT_MIN_SPEED,
+                       FORMER_SPELLINGS_REMOVED_IN)
 from .errors import InputError, is_whole_number
 from .planning.tolerance import ContourTolerance
 from .simulation.ensemble import MachineEnsemble
@@ -185,9 +185,6 @@ def limit_options(limits) -> LimitOptions:
     return LimitOptions(keep=limits)
 
 
-#: The release that removes the former keyword spellings of the options' fields
-#: (:func:`with_former_spellings`); until then they work and warn (DeprecationWarning).
-FORMER_SPELLINGS_REMOVED_IN = "0.2.0"
 
 
 def with_former_spellings(value, kind: type, make, name: str, **former):

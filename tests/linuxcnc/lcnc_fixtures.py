@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from precontour import load_machine
-from precontour.toolpath.linuxcnc import write_linuxcnc_config
-from precontour.toolpath.linuxcnc_run import linuxcnc_unavailable
+from precontour.linuxcnc.config import write_linuxcnc_config
+from precontour.linuxcnc.run import linuxcnc_unavailable
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.workflow import RunOutputs, run_program, write_run_outputs
 

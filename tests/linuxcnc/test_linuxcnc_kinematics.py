@@ -19,7 +19,7 @@ import pytest
 
 from precontour import load_machine
 from precontour.toolpath import read_program
-from precontour.toolpath.linuxcnc_run import run_gcode
+from precontour.linuxcnc.run import run_gcode
 
 from lcnc_fixtures import config, lcnc  # noqa: F401 (fixtures)
 

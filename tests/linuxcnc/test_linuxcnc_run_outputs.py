@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from precontour.tables import read_trajectory
-from precontour.toolpath.linuxcnc_run import block_timing, run_gcode, run_stream
+from precontour.linuxcnc.run import block_timing, run_gcode, run_stream
 
 from lcnc_fixtures import config, lcnc, paper_run, threeplus2_run  # noqa: F401 (fixtures)
 

@@ -316,7 +316,7 @@ def timing_trace(source: str | os.PathLike | ControllerTrace, program, machine, 
         return source
     text = str(source)
     if text.startswith(LINUXCNC_PREFIX):
-        from ..toolpath.linuxcnc_run import LinuxcncFailed, LinuxcncUnavailable, run_gcode
+        from ..linuxcnc.run import LinuxcncFailed, LinuxcncUnavailable, run_gcode
 
         config = Path(text[len(LINUXCNC_PREFIX):])
         if not (config / "headless.ini").is_file():

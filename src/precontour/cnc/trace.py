@@ -114,7 +114,7 @@ class ControllerTrace:
 
 
 def trace_from_recording(recording, source: str = "") -> ControllerTrace:
-    """The trace of a LinuxCNC recording (:class:`~precontour.toolpath.linuxcnc_run.
+    """The trace of a LinuxCNC recording (:class:`~precontour.linuxcnc.run.
     Recording`): the joints' commands (mm, degrees) in rad, plus the overlay where the
     configuration has one (``o0``..``o4``: the position loops' command is the motion
     controller's plus the overlay), the actual positions when it simulates drives

@@ -28,6 +28,7 @@ from ..defaults import GCODE_TOL_LINEAR as DEFAULT_TOL_LINEAR
 from ..defaults import GCODE_TOL_ROTARY as DEFAULT_TOL_ROTARY
 from ..errors import InputError
 from ..kernels import jit
+from ..linuxcnc.streamer import STREAMER_FLOAT, streamer_depth
 from ..machine.drives import AXES
 
 # DEFAULT_TOL_LINEAR, DEFAULT_TOL_ROTARY, the default decimation tolerances (1 um on X, Y, Z,
@@ -51,10 +52,6 @@ PLANNER_NOTE = ("timing: each block must take exactly its 60/F s, blended at ful
                 "{rotary}, here {count} of {blocks}: it blends them parabolically and "
                 "stretches them. On LinuxCNC run the stream instead, run --stream or export "
                 "--format halstreamer; precontour's docs/linuxcnc.md has the numbers")
-#: streamer's config letter for one float pin.
-STREAMER_FLOAT = "f"
-#: Seconds of samples the streamer FIFO holds, to ride through pauses of the feeding program.
-STREAMER_BUFFER_SECONDS = 2.0
 
 __all__ = ["DEFAULT_TOL_LINEAR", "DEFAULT_TOL_ROTARY", "PLANNER_NOTE", "ProgramInfo",
            "GcodeProgram", "decimate", "gcode_program", "halstreamer_lines", "rotary_moves",
@@ -362,11 +359,6 @@ def _wrap(text: str, width: int = 90) -> list[str]:
 def _comment(text: str) -> str:
     """Text safe inside a ``( )`` comment: no parentheses, one line."""
     return " ".join(str(text).replace("(", "[").replace(")", "]").split())
-
-
-def streamer_depth(ts: float) -> int:
-    """FIFO depth (samples) that holds :data:`STREAMER_BUFFER_SECONDS` of commands."""
-    return int(math.ceil(STREAMER_BUFFER_SECONDS / ts))
 
 
 def halstreamer_lines(q: np.ndarray, ts: float, *, info: ProgramInfo = ProgramInfo(),

@@ -12,7 +12,7 @@ from precontour import load_machine
 from precontour.cli import main
 from precontour.errors import InputError, OutputError
 from precontour.machine.machine_file import machine_data, machine_file_text, parse_machine
-from precontour.toolpath.linuxcnc import HEADER, linuxcnc_config, write_linuxcnc_config
+from precontour.linuxcnc.config import HEADER, linuxcnc_config, write_linuxcnc_config
 
 
 def _ini(text: str) -> configparser.ConfigParser:
@@ -226,3 +226,17 @@ def test_simulated_drives_need_a_pid_controller(tmp_path, capsys):
     looped = linuxcnc_config(machine)
     assert "pid" not in looped.files["machine.hal"].replace("pid.0.command", "")
     assert "FERROR" not in looped.files["machine.ini"]
+
+
+@pytest.mark.parametrize("former, module", [("linuxcnc", "config"), ("linuxcnc_run", "run"),
+                                            ("linuxcnc_drives", "drives")])
+def test_the_former_module_paths_warn_and_give_the_moved_modules(former, module):
+    import importlib
+    import sys
+
+    sys.modules.pop(f"precontour.toolpath.{former}", None)
+    with pytest.warns(DeprecationWarning, match=rf"precontour\.toolpath\.{former} is now "
+                                                rf"precontour\.linuxcnc\.{module}; the former "
+                                                r"path is removed in precontour 0\.2\.0"):
+        old = importlib.import_module(f"precontour.toolpath.{former}")
+    assert old is importlib.import_module(f"precontour.linuxcnc.{module}")

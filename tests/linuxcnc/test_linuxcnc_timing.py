@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precontour.toolpath.linuxcnc_run import Recording, block_timing, parse_run_gcode
+from precontour.linuxcnc.run import Recording, block_timing, parse_run_gcode
 from precontour.toolpath.writers import gcode_program
 
 TS = 0.001
