@@ -102,6 +102,19 @@ def test_batch_refuses_outputs_over_inputs_and_twice_the_same_name(tmp_path):
         batch_jobs([paths[0], twin], tmp_path / "out", machines=["zhang2013"])
     with pytest.raises(InputError, match="no such file or folder"):
         batch_jobs([tmp_path / "missing.ngc"], tmp_path / "out", machines=["zhang2013"])
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("not a program\n")
+    with pytest.raises(InputError, match=r"empty: no programs in this folder \(files ending "
+                                         r"\.apt, .*\.ngc, \.tap\)"):
+        batch_jobs([tmp_path / "empty"], tmp_path / "out", machines=["zhang2013"])
+    machine_file = tmp_path / "zhang2013.toml"
+    machine_file.write_text("[machine]\n")
+    with pytest.raises(InputError, match=r"field '--machine': two machines share a name "
+                                         r"\(zhang2013, zhang2013\): their outputs would go to "
+                                         r"the same folder"):
+        batch_jobs(paths, tmp_path / "out", machines=["zhang2013", machine_file])
+    with pytest.raises(InputError, match="give at least one machine"):
+        batch_jobs(paths, tmp_path / "out", machines=[])
     with pytest.raises(InputError, match="not an option of run: speed"):
         run_batch(paths, tmp_path / "out", machines=["zhang2013"], controller="pid-high",
                   speed=2)

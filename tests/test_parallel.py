@@ -71,6 +71,27 @@ def test_program_executor_refuses_an_address_that_is_not_dask():
         program_executor("dask://")
 
 
+def test_program_executor_says_when_no_dask_scheduler_answers(monkeypatch):
+    """A port nobody listens on (taken from the system, then freed): one line naming the
+    address, the wait and the option, within about the wait."""
+    import socket
+    import time
+
+    import precontour.parallel as parallel
+
+    pytest.importorskip("distributed", reason="the dask extra (distributed) is not installed")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    monkeypatch.setattr(parallel, "DASK_CONNECT_SECONDS", 1)
+    start = time.monotonic()
+    with pytest.raises(InputError, match=rf"field '--executor': no Dask scheduler answered at "
+                                         rf"dask://127\.0\.0\.1:{port} within 1 s \(") as caught:
+        program_executor(f"dask://127.0.0.1:{port}")
+    assert "\n" not in str(caught.value)
+    assert time.monotonic() - start < 30
+
+
 def test_run_gives_the_same_numbers_with_one_job_and_with_two():
     """``run`` on the 3+2 program with its five draws: the written program, the simulated
     errors and every draw's block maxima are identical, bit for bit, with one job and with
