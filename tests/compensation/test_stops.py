@@ -4,8 +4,9 @@ import pytest
 from precontour.compensation.precompensate import compensate
 import precontour.compensation.precompensate as precompensate
 from precontour.compensation.blocks import score
-from precontour.compensation.stops import (LINE_SEARCH_STEPS, SETTLE_DELAYS, final_rest_index,
-                                           learn_at_stops, settle_final_dwell)
+from precontour.compensation.stops import (LINE_SEARCH_STEPS, SETTLE_DELAYS, LearningSettings,
+                                           final_rest_index, learn_at_stops,
+                                           settle_final_dwell)
 from precontour.prediction.contour import ContourErrors
 from precontour.simulation.ensemble import ensemble_actual
 from precontour.prediction.contour import ReferencePath, contour_errors
@@ -169,11 +170,11 @@ def _fan_reversals():
 def _learned_and_reference_errors(traj, machine, monkeypatch=None, **learning_options):
     """Contour errors on the realistic machine (pid-high) of the uncompensated command and of
     the command learning on the ensemble of machines keeps (``learning_options`` passed on to
-    ``learn_at_stops``)."""
+    the learning's settings, :class:`~precontour.compensation.stops.LearningSettings`)."""
     if learning_options:
-        def learn(*args, **kwargs):
-            return learn_at_stops(*args, **kwargs, **learning_options)
-        monkeypatch.setattr(precompensate, "learn_at_stops", learn)
+        def settings(**kwargs):
+            return LearningSettings(**kwargs, **learning_options)
+        monkeypatch.setattr(precompensate, "LearningSettings", settings)
     models = machine.controller("pid-high").error_models(machine.drives)
 
     def actual(q):

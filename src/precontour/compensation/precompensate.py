@@ -29,7 +29,8 @@ from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
 from .idle_axes import hold_idle_axes, hold_resting_axes
 from .programmed_end import end_at_programmed_end
-from .stops import DEFAULT_LEARNING_PASSES, LearningReport, MachineActual, learn_at_stops
+from .stops import (DEFAULT_LEARNING_PASSES, Learner, LearningProblem, LearningReport,
+                    LearningSettings, MachineActual)
 
 # METHODS and COMPENSATION_TOL_* (the spline fit tolerances when compensating, ten times finer
 # than for prediction alone) are defined in precontour.defaults, for the command line's help.
@@ -233,18 +234,20 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     # ---- hook: stops and reversals under friction (compensation/stops.py) ----
     learning = None
     if machine_actual is not None and method == "contour":
-        q_learned, learning = learn_at_stops(
-            traj.q, q_best, traj.ts, machine_actual, errors_of,
-            learning_step(traj, reference, kinematics, hold=hold), passes=learning_passes,
-            progress=learning_progress, line=traj.line,
-            fallbacks=(("tracking-error pre-compensation", ended(hold(q_tracking))),),
+        problem = LearningProblem(
+            traj.q, traj.ts, machine_actual, errors_of,
+            learning_step(traj, reference, kinematics, hold=hold), line=traj.line,
             t0=float(t[0]), tail_errors_of=tail_errors_of,
-            repeat_actual=getattr(machine_actual, "repeat", None),
+            repeat_actual=getattr(machine_actual, "repeat", None))
+        learner = Learner(
+            problem, LearningSettings(passes=learning_passes), progress=learning_progress,
+            fallbacks=(("tracking-error pre-compensation", ended(hold(q_tracking))),),
             variants=(("resting axes held",
                        lambda q: hold_resting_axes(traj.q, q, idle_tolerance)),)
             if hold_idle else (),
             # every command tried is run, judged and kept ending at the programmed end
             finish=ended if programmed_end else None)
+        q_learned, learning = learner.learn(q_best)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":

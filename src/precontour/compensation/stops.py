@@ -207,6 +207,454 @@ def settle_final_dwell(q: np.ndarray, q_reference: np.ndarray, start: int) -> np
     return settled
 
 
+@dataclass(frozen=True)
+class LearningSettings:
+    """How :class:`Learner` learns (see :func:`learn_at_stops` for each field): the passes
+    per sequence, the settling delays, the line search's steps, the smoothing of each update,
+    what an update learns from on an ensemble, whether the command kept must also be nowhere
+    worse block by block, and the steps along the worst draw's own update."""
+
+    passes: int = DEFAULT_LEARNING_PASSES
+    settle_delays: tuple[float, ...] = SETTLE_DELAYS
+    line_search_steps: tuple[float, ...] = LINE_SEARCH_STEPS
+    smoothing: float = 0.0
+    update: str = "mean"
+    local: bool = True
+    worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS
+
+    def __post_init__(self):
+        if self.passes < 0:
+            raise ValueError(f"learning passes must be >= 0, got {self.passes}")
+        if self.update not in UPDATES:
+            raise ValueError(f"unknown learning update {self.update!r}; choose one of "
+                             f"{', '.join(UPDATES)}")
+
+
+@dataclass(frozen=True)
+class LearningProblem:
+    """What :class:`Learner` learns against (see :func:`learn_at_stops` for each field): the
+    reference commands and their sample period, the machine model (and its draws run again),
+    the contour errors of a motion (and of a tail of one), the contour step, and the blocks'
+    source lines and first sample time."""
+
+    q_reference: np.ndarray
+    ts: float
+    machine_actual: MachineActual
+    errors_of: Callable
+    contour_step: Callable
+    line: np.ndarray | None = None
+    t0: float = 0.0
+    tail_errors_of: Callable | None = None
+    repeat_actual: MachineActual | None = None
+
+
+class Learner:
+    """One run of learning at stops (:func:`learn_at_stops`): the commands tried, their
+    judgements on every draw of the machine model, and the choice of the command kept.
+
+    Its parts, in the order :meth:`learn` takes them: :meth:`consider` runs a command on the
+    machine model and records its judgement; :meth:`learn_sequences` learns the plain and the
+    line-searched sequences of every variant; :meth:`refine_on_worst_draw` tries the worst
+    draw's own update; :meth:`choose` takes the command kept, falling back locally where it
+    hurts (:meth:`repair`). How a candidate is picked is :meth:`choose` (and
+    :func:`~.blocks.best`, the order of judgements)."""
+
+    def __init__(self, problem: LearningProblem, settings: LearningSettings = LearningSettings(),
+                 *, admissible: Callable[[np.ndarray], bool] | None = None, progress=None,
+                 fallbacks: Sequence[tuple[str, np.ndarray]] = (),
+                 variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
+                 finish: Callable[[np.ndarray], np.ndarray] | None = None):
+        self.problem, self.settings = problem, settings
+        self.progress, self.fallbacks, self.variants = progress, fallbacks, variants
+        self.finished = (lambda q: q) if finish is None else finish
+        if admissible is not None and finish is not None:
+            def admissible_finished(q, admissible_as_given=admissible):
+                return admissible_as_given(self.finished(q))
+            admissible = admissible_finished
+        self.admissible = admissible
+        q_reference, ts = problem.q_reference, problem.ts
+        n = q_reference.shape[0]
+        self.starts = block_starts(n, ts, problem.line)
+        self.runs = 0
+        self.draws = 0
+        rest = final_rest_index(q_reference)
+        self.settle_starts = []
+        if rest is not None:
+            for delay in settings.settle_delays:
+                start = rest + int(round(delay / ts))
+                if start < n - 1:
+                    self.settle_starts.append((delay, start))
+        self.sigma = settings.smoothing / ts
+        self.entries = []    # (candidate, q, judgement)
+        self.suffix = ""     # the name of the variant being learned, if any
+        self.project = None  # the projection of the variant being learned, if any
+        # By the id of a command tried (entries keep every one alive, so no id is reused): the
+        # projection of the variant it was learned in, and where its tail is settled from
+        self.projections = {}
+        self.settled = {}
+        self.reference = None
+
+    # ------------------------------------------------------------------ the machine model
+    def run(self, q, model=None):
+        """The machine model's actual motions of ``q`` (finished), shape (D, N, 5), or None
+        when ``q`` or a motion is not finite (a diverging update is simply not kept)."""
+        machine_actual = self.problem.machine_actual
+        model = machine_actual if model is None else model
+        if not np.all(np.isfinite(q)):
+            return None
+        q = self.finished(q)
+        motion = np.asarray(model(q), dtype=float)
+        if motion.ndim == 2:
+            motion = motion[None]
+        self.runs += motion.shape[0]
+        if model is machine_actual:
+            self.draws = motion.shape[0]
+        return motion if np.all(np.isfinite(motion)) else None
+
+    def learned_from(self, motion):
+        return motion.mean(axis=0) if self.settings.update == "mean" else motion[0]
+
+    def actual(self, q):
+        """The contour step's machine: one motion per command, as ``update`` says."""
+        motion = self.run(q)
+        return np.full(q.shape, np.nan) if motion is None else self.learned_from(motion)
+
+    def judge_command(self, q, like=None):
+        """The judgement of ``q``, its motions and their contour errors; ``like``: the motions
+        and errors of a command that ``q`` equals up to some sample (a settled tail), whose
+        errors are reused up to where the motions part (the machine is causal)."""
+        errors_of, tail_errors_of = self.problem.errors_of, self.problem.tail_errors_of
+        motion = self.run(q)
+        if motion is None:
+            return not_finite(max(self.draws, 1), self.starts.size), None, None
+        if like is None or like[0] is None or tail_errors_of is None \
+                or like[0].shape != motion.shape:
+            # the draws' contour errors side by side (threads: the closest-point search
+            # releases the GIL), as their motions were run
+            errors = list(map_ordered(errors_of, motion))
+        else:
+            parted = np.flatnonzero(np.any(motion != like[0], axis=(0, 2)))
+            if parted.size == 0:
+                errors = list(like[1])
+            else:
+                first = int(parted[0])
+                errors = list(map_ordered(
+                    lambda pair: splice_errors(pair[0], tail_errors_of(pair[1][first:], first),
+                                               first), zip(like[1], motion)))
+        return judge(errors, self.starts), motion, errors
+
+    def judged_safely(self, q, like=None):
+        """:meth:`judge_command`, a command that diverged judged not finite: one that is not
+        finite, whose motion is not, or that the machine model or the contour errors refuse
+        (e.g. coordinates out of range)."""
+        check_signals()  # between machine runs: where a SIGTERM or Ctrl-C stops learning
+        try:
+            with np.errstate(all="ignore"):
+                return self.judge_command(q, like)
+        except PrecontourError:
+            return not_finite(max(self.draws, 1), self.starts.size), None, None
+
+    def judge_reference(self):
+        """The uncompensated command's judgement, with its repeatability (the draws run
+        again) where the command kept must be nowhere worse block by block."""
+        q_reference, repeat_actual = self.problem.q_reference, self.problem.repeat_actual
+        reference, _, _ = self.judge_command(q_reference)
+        if not reference.finite:
+            raise ValueError("the machine model's motion of the uncompensated command is not "
+                             "finite")
+        again = (None if repeat_actual is None or not self.settings.local
+                 else self.run(q_reference, repeat_actual))
+        if again is not None:
+            reference = with_repeatability(
+                reference, judge((self.problem.errors_of(m) for m in again), self.starts))
+        self.reference = reference
+        self.entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
+                                               reference.median), q_reference, reference))
+
+    # ------------------------------------------------------------------ commands tried
+    def consider(self, label, q, like=None):
+        """Judge and record ``q``; returns what an update learns from (None when it
+        diverged: such a candidate is never kept) and its motions and errors (for
+        :meth:`consider_settled`)."""
+        judged, motion, errors = self.judged_safely(q, like)
+        label += self.suffix
+        if not judged.finite:
+            label += " (diverged)"
+        repairable = judged.finite and (self.admissible is None or self.admissible(q))
+        ok = repairable and whole_ok(judged, self.reference)
+        blocks_ok = ok and not worse_blocks(judged, self.reference).any()
+        self.entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok,
+                                               judged.median, repairable), q, judged))
+        if self.project is not None:
+            self.projections[id(q)] = self.project
+        if self.progress is not None:
+            self.progress(label, judged.worst)
+        return (None if motion is None else self.learned_from(motion)), (motion, errors)
+
+    def towards(self, q, q_new):
+        """``q_new``, or with smoothing ``q`` plus the smoothed change to ``q_new``."""
+        if self.sigma <= 0 or not np.all(np.isfinite(q_new)):
+            return q_new
+        return q + gaussian_filter1d(q_new - q, self.sigma, axis=0, mode="nearest")
+
+    def alone(self, draw):
+        """The machine model's draw ``draw`` alone as the contour step's machine (one motion
+        per command, not finite where it diverged), on its one-draw model where it has one."""
+        one = getattr(self.problem.machine_actual, "draw", None)
+
+        def one_draw(q_cmd):
+            return one(q_cmd, draw)
+
+        def motion(q):
+            motions = self.run(q) if one is None else self.run(q, one_draw)
+            if motions is None:
+                return np.full(q.shape, np.nan)
+            return motions[draw] if one is None else motions[0]
+        return motion
+
+    def step_from(self, q_cmd, q_act, model=None):
+        """The next iterate, or None when the update diverged; ``model``: the machine the
+        update learns from where not :meth:`actual` (the motion of ``q_cmd`` then run here)."""
+        contour_step = self.problem.contour_step
+        try:
+            with np.errstate(all="ignore"):
+                if model is None:
+                    q_new = self.towards(q_cmd, contour_step(q_cmd, q_act, self.actual))
+                else:
+                    q_new = self.towards(q_cmd, contour_step(q_cmd, model(q_cmd), model))
+                if self.project is not None:
+                    q_new = self.project(q_new)
+        except PrecontourError:
+            return None
+        return q_new if np.all(np.isfinite(q_new)) else None
+
+    def settle(self, q, start):
+        """``q`` with its tail settled from sample ``start`` on (smoothed as updates are)."""
+        q_settled = self.towards(q, settle_final_dwell(q, self.problem.q_reference, start))
+        self.settled[id(q_settled)] = start
+        return q_settled
+
+    def consider_settled(self, label, q, like):
+        for delay, start in self.settle_starts:
+            self.consider(f"{label}, settled {1e3 * delay:.0f} ms", self.settle(q, start), like)
+
+    # ------------------------------------------------------------------ the sequences
+    def learn_sequences(self, q_linear):
+        """Both sequences from ``q_linear`` and from each variant's projection of it.
+
+        Each variant learns both sequences again from its projection of q_linear. One that
+        leaves q_linear as it is starts from the linear command's judgement (not run again),
+        and adds nothing where it leaves the first plain pass as it is too: a resting axis
+        that the linear passes held may still be moved by the updates, which learn from every
+        axis's actual motion (on `circle` / `pid-high` pass 1 moved X, which the reference
+        never moves, by up to 1.4 um, and X slipped 44 um on one draw)."""
+        main = None     # the main sequence's linear motion and first plain iterate
+        for name, projection in (("", None), *self.variants):
+            q_first = q_linear if projection is None else projection(q_linear)
+            if projection is not None and q_first is q_linear and (
+                    main[2] is None or projection(main[2]) is main[2]):
+                continue
+            self.suffix, self.project = (f", {name}" if name else ""), projection
+            if projection is not None and q_first is q_linear:
+                q_act_linear, linear_state = main[0], main[1]
+            else:
+                q_act_linear, linear_state = self.consider("linear", q_first)
+                self.consider_settled("linear", q_first, linear_state)
+            plain = self.plain_sequence(q_first, q_act_linear)
+            if projection is None:
+                main = (q_act_linear, linear_state, plain[0][0] if plain else None)
+            if self.settings.line_search_steps:
+                self.line_searched_sequence(q_first, q_act_linear, plain)
+
+    def plain_sequence(self, q_first, q_act_linear):
+        """The plain sequence: each pass applies the whole update. A sequence that diverges
+        (an iterate not finite, or refused by the machine model) ends there: what it tried
+        before stays a candidate, the diverged iterate is never kept. Per pass: the plain
+        iterate, its entry and what an update learns from."""
+        q_cmd, q_act = q_first, q_act_linear
+        plain = []
+        for k in range(1, self.settings.passes + 1):
+            q_cmd = None if q_act is None else self.step_from(q_cmd, q_act)
+            if q_cmd is None:
+                break
+            q_act, state = self.consider(f"pass {k}", q_cmd)
+            if q_act is None:
+                break
+            plain.append((q_cmd, self.entries[-1], q_act))
+            self.consider_settled(f"pass {k}", q_cmd, state)
+        return plain
+
+    def line_searched_sequence(self, q_first, q_act_linear, plain):
+        """The line-searched sequence: each pass continues from the best step along the
+        update, best on its worst draw. While it has taken the whole update at every pass,
+        its whole step is the plain iterate itself: that iterate's judgement is taken, not
+        run again, and its settled tails were tried with it (on a long program, one update
+        and one judgement of every draw per segment saved)."""
+        q_cmd, q_act = q_first, q_act_linear
+        on_plain = True
+        for k in range(1, self.settings.passes + 1):
+            same = on_plain and k <= len(plain)
+            if same:
+                q_full = plain[k - 1][0]
+            else:
+                q_full = None if q_act is None else self.step_from(q_cmd, q_act)
+            if q_full is None:
+                break
+            tried = []
+            for step in self.settings.line_search_steps:
+                label = f"line-searched pass {k} (step {step:g})"
+                if same and step == 1.0:
+                    _, (candidate, _, judged), q_act_try = plain[k - 1]
+                    self.entries.append((replace(candidate, label=label + self.suffix),
+                                         q_full, judged))
+                    if self.progress is not None:
+                        self.progress(label + self.suffix, judged.worst)
+                    tried.append((judged, label, q_full, q_act_try, None))
+                    continue
+                with np.errstate(all="ignore"):
+                    q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
+                q_act_try, state = self.consider(label, q_try)
+                if q_act_try is not None:
+                    tried.append((self.entries[-1][2], label, q_try, q_act_try, state))
+            if not tried:
+                break
+            _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
+            on_plain = same and q_cmd is q_full
+            if not on_plain:
+                self.consider_settled(label, q_cmd, state)
+
+    def refine_on_worst_draw(self):
+        """The worst draw's own update: from the best admissible command so far, a fraction
+        of the update learned from the motion of its worst draw alone, per step of
+        ``worst_draw_steps``. The ids of the commands it tries: kept as they are or not at all
+        (neither mended nor taken in a block by another's fallback)."""
+        refinements = set()
+        settings = self.settings
+        if not (self.draws > 1 and settings.passes > 0 and settings.worst_draw_steps):
+            return refinements
+        so_far = [entry for entry in self.entries if entry[0].accepted]
+        origin, q_origin, judged_origin = so_far[best([entry[2] for entry in so_far])]
+        if q_origin is self.problem.q_reference:
+            return refinements
+        worst_draw = int(np.argmax([score(s) for s in judged_origin.summaries]))
+        # learned as its own variant was, its tail settled where its own was
+        self.suffix, self.project = "", self.projections.get(id(q_origin))
+        settled_from = self.settled.get(id(q_origin))
+        q_update = self.step_from(q_origin, None, self.alone(worst_draw))
+        for step in ([] if q_update is None else settings.worst_draw_steps):
+            with np.errstate(all="ignore"):
+                # (both held where the variant holds: so is their combination)
+                q_try = q_origin + step * (q_update - q_origin)
+            if settled_from is not None:
+                q_try = self.settle(q_try, settled_from)
+            self.consider(f"{origin.label}, then draw {worst_draw}'s update (step {step:g})",
+                          q_try)
+            refinements.add(id(q_try))
+        return refinements
+
+    # ------------------------------------------------------------------ the choice
+    def repair(self, entry, alternatives=(), program_margin=0.0):
+        """``entry`` fallen back where it hurts (:func:`~.blocks.fall_back`): its entry and
+        the report, or None where only the planned command everywhere would do, or where it
+        no longer improves on the uncompensated command (:func:`~.blocks.improves`)."""
+        problem = self.problem
+        candidate, q_try, judged_try = entry
+        q_fixed, judged, report_try = fall_back(
+            q_try, judged_try, problem.q_reference, self.reference,
+            lambda q: self.judged_safely(q)[0], self.starts, problem.ts,
+            alternatives=alternatives, fallbacks=self.fallbacks, admissible=self.admissible,
+            line=problem.line, t0=problem.t0, program_margin=program_margin)
+        if report_try.everywhere or not improves(judged, self.reference):
+            return None
+        label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
+        return ((LearningCandidate(label, judged.worst, True, True, judged.median),
+                 q_fixed, judged), report_try)
+
+    def choose(self, refinements):
+        """The entry kept, the fallback it took (or None) and the machine runs the fallbacks
+        cost. Besides the admissible commands, every finite command within the limits that is
+        worse in whole on some draw may be repaired: that is worse there in some block, which
+        the fallback mends like any other (on LinuxCNC's boat, a segment whose linear command
+        was worse on one draw's max kept the uncompensated command with no fallback tried).
+        They are ranked by their estimated mended worst draw (blocks.repaired_score) and
+        tried after the admissible ones."""
+        q_reference, reference, entries = self.problem.q_reference, self.reference, self.entries
+        accepted = [entry for entry in entries if entry[0].accepted]
+        ranks = np.array([entry[2].score for entry in accepted])
+        kept = accepted[best([entry[2] for entry in accepted])]
+        unadmitted = [entry for entry in entries if entry[0].repairable
+                      and not entry[0].accepted and id(entry[1]) not in refinements]
+        if not (self.settings.local
+                and (not kept[0].blocks_ok or (kept[1] is q_reference and unadmitted))):
+            return kept, None, 0
+        # The best candidates that hurt somewhere fall back there; the best of them is kept
+        # if it beats the best candidate that needed no fallback. Several are tried because
+        # where a fallback lands (a stop, the final dwell) decides what it costs.
+        safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
+        order = [accepted[i] for i in np.argsort(ranks, kind="stable")
+                 if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok
+                 and id(accepted[i][1]) not in refinements][:REPAIRED_CANDIDATES]
+        estimates = np.array([repaired_score(entry[2], reference) for entry in unadmitted])
+        order += [unadmitted[i] for i in np.argsort(estimates, kind="stable")
+                  if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
+        # a command tried under two labels (a line-searched whole step on the plain track) is
+        # repaired once
+        unique = {}
+        for entry in order:
+            unique.setdefault(id(entry[1]), entry)
+        order = list(unique.values())
+        ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
+                  if accepted[i][1] is not q_reference and id(accepted[i][1]) not in refinements]
+        repaired = []
+        runs_before = self.runs
+        for entry in order:
+            alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
+                            if q_alt is not entry[1]][:ALTERNATIVES]
+            fixed = self.repair(entry, alternatives)
+            if fixed is not None:
+                repaired.append(fixed)
+        pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
+        kept = pool[best([entry[2] for entry in pool])]
+        fallback = next((f for e, f in repaired if e is kept), None)
+        if kept[1] is q_reference:
+            # Nothing is nowhere worse within the block margins: before giving the
+            # uncompensated command back, the second chance of blocks.PROGRAM_MARGIN (a
+            # fallback's blend on a curved path can itself leave the neighbours a few % worse)
+            loose = [entry for entry in accepted if entry[1] is not q_reference
+                     and not worse_blocks(entry[2], reference, PROGRAM_MARGIN).any()]
+            for entry in ([] if loose else order):
+                fixed = self.repair(entry, program_margin=PROGRAM_MARGIN)
+                if fixed is not None:
+                    loose.append(fixed[0])
+                    repaired.append(fixed)
+            if loose:
+                kept = loose[best([entry[2] for entry in loose])]
+                kept = (replace(kept[0], label=f"{kept[0].label}, within "
+                                               f"{100 * PROGRAM_MARGIN:g} % of the "
+                                               "uncompensated max"),) + kept[1:]
+                fallback = next((f for e, f in repaired if e[1] is kept[1]), None)
+        return kept, fallback, self.runs - runs_before
+
+    def learn(self, q_linear):
+        """Learn from the linear compensation ``q_linear``: the command kept (finished) and
+        the report (see :func:`learn_at_stops`)."""
+        self.judge_reference()
+        self.learn_sequences(q_linear)
+        refinements = self.refine_on_worst_draw()
+        linear = next(c for c, _, _ in self.entries
+                      if c.label in ("linear", "linear (diverged)"))
+        (chosen, q_kept, judged), fallback, fallback_runs = self.choose(refinements)
+        reference = self.reference
+        report = LearningReport(chosen=chosen.label, uncompensated=reference.worst,
+                                linear=linear.summary, kept=chosen.summary,
+                                candidates=tuple(c for c, _, _ in self.entries),
+                                machine_runs=self.runs, draws=reference.draws,
+                                uncompensated_draws=reference.summaries,
+                                kept_draws=judged.summaries, fallback=fallback,
+                                fallback_runs=fallback_runs)
+        return self.finished(q_kept), report
+
+
 def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    machine_actual: MachineActual, errors_of, contour_step, *,
                    passes: int = DEFAULT_LEARNING_PASSES,
@@ -318,353 +766,13 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         The command kept.
     report : LearningReport
     """
-    if passes < 0:
-        raise ValueError(f"learning passes must be >= 0, got {passes}")
-    finished = (lambda q: q) if finish is None else finish
-    if admissible is not None and finish is not None:
-        admissible_as_given = admissible
-
-        def admissible(q):
-            return admissible_as_given(finished(q))
-    if update not in UPDATES:
-        raise ValueError(f"unknown learning update {update!r}; choose one of "
-                         f"{', '.join(UPDATES)}")
-    n = q_reference.shape[0]
-    starts = block_starts(n, ts, line)
-    runs = 0
-    draws = 0
-
-    def run(q, model=machine_actual):
-        """The machine model's actual motions of ``q`` (finished), shape (D, N, 5), or None
-        when ``q`` or a motion is not finite (a diverging update is simply not kept)."""
-        nonlocal runs, draws
-        if not np.all(np.isfinite(q)):
-            return None
-        q = finished(q)
-        motion = np.asarray(model(q), dtype=float)
-        if motion.ndim == 2:
-            motion = motion[None]
-        runs += motion.shape[0]
-        if model is machine_actual:
-            draws = motion.shape[0]
-        return motion if np.all(np.isfinite(motion)) else None
-
-    def learned_from(motion):
-        return motion.mean(axis=0) if update == "mean" else motion[0]
-
-    def actual(q):
-        """The contour step's machine: one motion per command, as ``update`` says."""
-        motion = run(q)
-        return np.full(q.shape, np.nan) if motion is None else learned_from(motion)
-
-    def judge_command(q, like=None):
-        """The judgement of ``q``, its motions and their contour errors; ``like``: the motions
-        and errors of a command that ``q`` equals up to some sample (a settled tail), whose
-        errors are reused up to where the motions part (the machine is causal)."""
-        motion = run(q)
-        if motion is None:
-            return not_finite(max(draws, 1), starts.size), None, None
-        if like is None or like[0] is None or tail_errors_of is None \
-                or like[0].shape != motion.shape:
-            # the draws' contour errors side by side (threads: the closest-point search
-            # releases the GIL), as their motions were run
-            errors = list(map_ordered(errors_of, motion))
-        else:
-            parted = np.flatnonzero(np.any(motion != like[0], axis=(0, 2)))
-            if parted.size == 0:
-                errors = list(like[1])
-            else:
-                first = int(parted[0])
-                errors = list(map_ordered(
-                    lambda pair: splice_errors(pair[0], tail_errors_of(pair[1][first:], first),
-                                               first), zip(like[1], motion)))
-        return judge(errors, starts), motion, errors
-
-    rest = final_rest_index(q_reference)
-    settle_starts = []
-    if rest is not None:
-        for delay in settle_delays:
-            start = rest + int(round(delay / ts))
-            if start < n - 1:
-                settle_starts.append((delay, start))
-
-    sigma = smoothing / ts
-
-    def towards(q, q_new):
-        """``q_new``, or with smoothing ``q`` plus the smoothed change to ``q_new``."""
-        if sigma <= 0 or not np.all(np.isfinite(q_new)):
-            return q_new
-        return q + gaussian_filter1d(q_new - q, sigma, axis=0, mode="nearest")
-
-    reference, _, _ = judge_command(q_reference)
-    if not reference.finite:
-        raise ValueError("the machine model's motion of the uncompensated command is not "
-                         "finite")
-    again = None if repeat_actual is None or not local else run(q_reference, repeat_actual)
-    if again is not None:
-        reference = with_repeatability(reference, judge((errors_of(m) for m in again), starts))
-    entries = []    # (candidate, q, judgement)
-
-    def judged_safely(q, like=None):
-        """:func:`judge_command`, a command that diverged judged not finite: one that is not
-        finite, whose motion is not, or that the machine model or the contour errors refuse
-        (e.g. coordinates out of range)."""
-        check_signals()  # between machine runs: where a SIGTERM or Ctrl-C stops learning
-        try:
-            with np.errstate(all="ignore"):
-                return judge_command(q, like)
-        except PrecontourError:
-            return not_finite(max(draws, 1), starts.size), None, None
-
-    suffix = ""     # the name of the variant being learned, if any
-
-    def consider(label, q, like=None):
-        """Judge and record ``q``; returns what an update learns from (None when it
-        diverged: such a candidate is never kept) and its motions and errors (for
-        :func:`consider_settled`)."""
-        judged, motion, errors = judged_safely(q, like)
-        label += suffix
-        if not judged.finite:
-            label += " (diverged)"
-        repairable = judged.finite and (admissible is None or admissible(q))
-        ok = repairable and whole_ok(judged, reference)
-        blocks_ok = ok and not worse_blocks(judged, reference).any()
-        entries.append((LearningCandidate(label, judged.worst, ok, blocks_ok, judged.median,
-                                          repairable), q, judged))
-        if project is not None:
-            projections[id(q)] = project
-        if progress is not None:
-            progress(label, judged.worst)
-        return (None if motion is None else learned_from(motion)), (motion, errors)
-
-    project = None  # the projection of the variant being learned, if any
-    # By the id of a command tried (entries keep every one alive, so no id is reused): the
-    # projection of the variant it was learned in, and where its tail is settled from
-    projections = {}
-    settled = {}
-
-    def alone(draw):
-        """The machine model's draw ``draw`` alone as the contour step's machine (one motion
-        per command, not finite where it diverged), on its one-draw model where it has one."""
-        one = getattr(machine_actual, "draw", None)
-
-        def one_draw(q_cmd):
-            return one(q_cmd, draw)
-
-        def motion(q):
-            motions = run(q) if one is None else run(q, one_draw)
-            if motions is None:
-                return np.full(q.shape, np.nan)
-            return motions[draw] if one is None else motions[0]
-        return motion
-
-    def step_from(q_cmd, q_act, model=None):
-        """The next iterate, or None when the update diverged; ``model``: the machine the
-        update learns from where not ``actual`` (the motion of ``q_cmd`` then run here)."""
-        try:
-            with np.errstate(all="ignore"):
-                if model is None:
-                    q_new = towards(q_cmd, contour_step(q_cmd, q_act, actual))
-                else:
-                    q_new = towards(q_cmd, contour_step(q_cmd, model(q_cmd), model))
-                if project is not None:
-                    q_new = project(q_new)
-        except PrecontourError:
-            return None
-        return q_new if np.all(np.isfinite(q_new)) else None
-
-    def settle(q, start):
-        """``q`` with its tail settled from sample ``start`` on (smoothed as updates are)."""
-        q_settled = towards(q, settle_final_dwell(q, q_reference, start))
-        settled[id(q_settled)] = start
-        return q_settled
-
-    def consider_settled(label, q, like):
-        for delay, start in settle_starts:
-            consider(f"{label}, settled {1e3 * delay:.0f} ms", settle(q, start), like)
-
-    entries.append((LearningCandidate("uncompensated", reference.worst, True, True,
-                                      reference.median), q_reference, reference))
-    # Each variant learns both sequences again from its projection of q_linear. One that
-    # leaves q_linear as it is starts from the linear command's judgement (not run again),
-    # and adds nothing where it leaves the first plain pass as it is too: a resting axis that
-    # the linear passes held may still be moved by the updates, which learn from every
-    # axis's actual motion (on `circle` / `pid-high` pass 1 moved X, which the reference
-    # never moves, by up to 1.4 um, and X slipped 44 um on one draw).
-    main = None     # the main sequence's linear motion and first plain iterate
-    for name, projection in (("", None), *variants):
-        q_first = q_linear if projection is None else projection(q_linear)
-        if projection is not None and q_first is q_linear and (
-                main[2] is None or projection(main[2]) is main[2]):
-            continue
-        suffix, project = (f", {name}" if name else ""), projection
-        if projection is not None and q_first is q_linear:
-            q_act_linear, linear_state = main[0], main[1]
-        else:
-            q_act_linear, linear_state = consider("linear", q_first)
-            consider_settled("linear", q_first, linear_state)
-        # The plain sequence: each pass applies the whole update. A sequence that diverges (an
-        # iterate not finite, or refused by the machine model) ends there: what it tried before
-        # stays a candidate, the diverged iterate is never kept.
-        q_cmd, q_act = q_first, q_act_linear
-        plain = []      # per pass: the plain iterate, its entry and what an update learns from
-        for k in range(1, passes + 1):
-            q_cmd = None if q_act is None else step_from(q_cmd, q_act)
-            if q_cmd is None:
-                break
-            q_act, state = consider(f"pass {k}", q_cmd)
-            if q_act is None:
-                break
-            plain.append((q_cmd, entries[-1], q_act))
-            consider_settled(f"pass {k}", q_cmd, state)
-        if projection is None:
-            main = (q_act_linear, linear_state, plain[0][0] if plain else None)
-        # The line-searched sequence: each pass continues from the best step along the update,
-        # best on its worst draw. While it has taken the whole update at every pass, its whole
-        # step is the plain iterate itself: that iterate's judgement is taken, not run again,
-        # and its settled tails were tried with it (on a long program, one update and one
-        # judgement of every draw per segment saved).
-        if line_search_steps:
-            q_cmd, q_act = q_first, q_act_linear
-            on_plain = True
-            for k in range(1, passes + 1):
-                same = on_plain and k <= len(plain)
-                if same:
-                    q_full = plain[k - 1][0]
-                else:
-                    q_full = None if q_act is None else step_from(q_cmd, q_act)
-                if q_full is None:
-                    break
-                tried = []
-                for step in line_search_steps:
-                    label = f"line-searched pass {k} (step {step:g})"
-                    if same and step == 1.0:
-                        _, (candidate, _, judged), q_act_try = plain[k - 1]
-                        entries.append((replace(candidate, label=label + suffix), q_full,
-                                        judged))
-                        if progress is not None:
-                            progress(label + suffix, judged.worst)
-                        tried.append((judged, label, q_full, q_act_try, None))
-                        continue
-                    with np.errstate(all="ignore"):
-                        q_try = q_full if step == 1.0 else q_cmd + step * (q_full - q_cmd)
-                    q_act_try, state = consider(label, q_try)
-                    if q_act_try is not None:
-                        tried.append((entries[-1][2], label, q_try, q_act_try, state))
-                if not tried:
-                    break
-                _, label, q_cmd, q_act, state = tried[best([entry[0] for entry in tried])]
-                on_plain = same and q_cmd is q_full
-                if not on_plain:
-                    consider_settled(label, q_cmd, state)
-    # The worst draw's own update: from the best admissible command so far, a fraction of the
-    # update learned from the motion of its worst draw alone, per step of worst_draw_steps.
-    # The ids of the commands it tries: kept as they are or not at all (neither mended nor
-    # taken in a block by another's fallback).
-    refinements = set()
-    if draws > 1 and passes > 0 and worst_draw_steps:
-        so_far = [entry for entry in entries if entry[0].accepted]
-        origin, q_origin, judged_origin = so_far[best([entry[2] for entry in so_far])]
-        if q_origin is not q_reference:
-            worst_draw = int(np.argmax([score(s) for s in judged_origin.summaries]))
-            # learned as its own variant was, its tail settled where its own was
-            suffix, project = "", projections.get(id(q_origin))
-            settled_from = settled.get(id(q_origin))
-            q_update = step_from(q_origin, None, alone(worst_draw))
-            for step in ([] if q_update is None else worst_draw_steps):
-                with np.errstate(all="ignore"):
-                    # (both held where the variant holds: so is their combination)
-                    q_try = q_origin + step * (q_update - q_origin)
-                if settled_from is not None:
-                    q_try = settle(q_try, settled_from)
-                consider(f"{origin.label}, then draw {worst_draw}'s update (step {step:g})",
-                         q_try)
-                refinements.add(id(q_try))
-    linear = next(c for c, _, _ in entries if c.label in ("linear", "linear (diverged)"))
-    accepted = [entry for entry in entries if entry[0].accepted]
-    ranks = np.array([entry[2].score for entry in accepted])
-    kept = accepted[best([entry[2] for entry in accepted])]
-    fallback = None
-    fallback_runs = 0
-    # Besides the admissible commands, every finite command within the limits that is worse
-    # in whole on some draw may be repaired: that is worse there in some block, which the
-    # fallback mends like any other (on LinuxCNC's boat, a segment whose linear command was
-    # worse on one draw's max kept the uncompensated command with no fallback tried). They
-    # are ranked by their estimated mended worst draw (blocks.repaired_score) and tried after
-    # the admissible ones.
-    unadmitted = [entry for entry in entries if entry[0].repairable and not entry[0].accepted
-                  and id(entry[1]) not in refinements]
-    if local and (not kept[0].blocks_ok or (kept[1] is q_reference and unadmitted)):
-        # The best candidates that hurt somewhere fall back there; the best of them is kept
-        # if it beats the best candidate that needed no fallback. Several are tried because
-        # where a fallback lands (a stop, the final dwell) decides what it costs.
-        safe_rank = min(r for r, entry in zip(ranks, accepted) if entry[0].blocks_ok)
-        order = [accepted[i] for i in np.argsort(ranks, kind="stable")
-                 if ranks[i] <= safe_rank * (1.0 + TIE) and not accepted[i][0].blocks_ok
-                 and id(accepted[i][1]) not in refinements][:REPAIRED_CANDIDATES]
-        estimates = np.array([repaired_score(entry[2], reference) for entry in unadmitted])
-        order += [unadmitted[i] for i in np.argsort(estimates, kind="stable")
-                  if estimates[i] <= safe_rank * (1.0 + TIE)][:REPAIRED_CANDIDATES]
-        # a command tried under two labels (a line-searched whole step on the plain track) is
-        # repaired once
-        unique = {}
-        for entry in order:
-            unique.setdefault(id(entry[1]), entry)
-        order = list(unique.values())
-        ranked = [accepted[i] for i in np.argsort(ranks, kind="stable")
-                  if accepted[i][1] is not q_reference and id(accepted[i][1]) not in refinements]
-
-        def repair(entry, alternatives=(), program_margin=0.0):
-            """``entry`` fallen back where it hurts (:func:`~.blocks.fall_back`): its entry
-            and the report, or None where only the planned command everywhere would do, or
-            where it no longer improves on the uncompensated command
-            (:func:`~.blocks.improves`)."""
-            candidate, q_try, judged_try = entry
-            q_fixed, judged, report_try = fall_back(
-                q_try, judged_try, q_reference, reference, lambda q: judged_safely(q)[0],
-                starts, ts, alternatives=alternatives, fallbacks=fallbacks,
-                admissible=admissible, line=line, t0=t0, program_margin=program_margin)
-            if report_try.everywhere or not improves(judged, reference):
-                return None
-            label = f"{candidate.label}, fell back in {len(report_try.blocks)} block(s)"
-            return ((LearningCandidate(label, judged.worst, True, True, judged.median),
-                     q_fixed, judged), report_try)
-
-        repaired = []
-        runs_before = runs
-        for entry in order:
-            alternatives = [(c.label, q_alt, j) for c, q_alt, j in ranked
-                            if q_alt is not entry[1]][:ALTERNATIVES]
-            fixed = repair(entry, alternatives)
-            if fixed is not None:
-                repaired.append(fixed)
-        pool = [entry for entry in accepted if entry[0].blocks_ok] + [e for e, _ in repaired]
-        kept = pool[best([entry[2] for entry in pool])]
-        fallback = next((f for e, f in repaired if e is kept), None)
-        if kept[1] is q_reference:
-            # Nothing is nowhere worse within the block margins: before giving the
-            # uncompensated command back, the second chance of blocks.PROGRAM_MARGIN (a
-            # fallback's blend on a curved path can itself leave the neighbours a few % worse)
-            loose = [entry for entry in accepted if entry[1] is not q_reference
-                     and not worse_blocks(entry[2], reference, PROGRAM_MARGIN).any()]
-            for entry in ([] if loose else order):
-                fixed = repair(entry, program_margin=PROGRAM_MARGIN)
-                if fixed is not None:
-                    loose.append(fixed[0])
-                    repaired.append(fixed)
-            if loose:
-                kept = loose[best([entry[2] for entry in loose])]
-                kept = (replace(kept[0], label=f"{kept[0].label}, within "
-                                               f"{100 * PROGRAM_MARGIN:g} % of the "
-                                               "uncompensated max"),) + kept[1:]
-                fallback = next((f for e, f in repaired if e[1] is kept[1]), None)
-        fallback_runs = runs - runs_before
-    chosen, q_kept, judged = kept
-    q_kept = finished(q_kept)
-    report = LearningReport(chosen=chosen.label, uncompensated=reference.worst,
-                            linear=linear.summary, kept=chosen.summary,
-                            candidates=tuple(c for c, _, _ in entries), machine_runs=runs,
-                            draws=reference.draws, uncompensated_draws=reference.summaries,
-                            kept_draws=judged.summaries, fallback=fallback,
-                            fallback_runs=fallback_runs)
-    return q_kept, report
+    settings = LearningSettings(passes=passes, settle_delays=tuple(settle_delays),
+                                line_search_steps=tuple(line_search_steps), smoothing=smoothing,
+                                update=update, local=local,
+                                worst_draw_steps=tuple(worst_draw_steps))
+    problem = LearningProblem(q_reference, ts, machine_actual, errors_of, contour_step,
+                              line=line, t0=t0, tail_errors_of=tail_errors_of,
+                              repeat_actual=repeat_actual)
+    learner = Learner(problem, settings, admissible=admissible, progress=progress,
+                      fallbacks=fallbacks, variants=variants, finish=finish)
+    return learner.learn(q_linear)

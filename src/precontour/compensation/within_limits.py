@@ -51,8 +51,8 @@ from .pieces import compensate_program, predict_program
 from .programmed_end import end_at_programmed_end
 from .precompensate import (CompensationResult, compensation_axis_tolerances, compensate,
                             compensation_tolerances, learning_step, predicted_actual)
-from .stops import (LIMITED_SMOOTHING, SETTLE_DELAYS, LearningReport, MachineActual,
-                    learn_at_stops)
+from .stops import (LIMITED_SMOOTHING, SETTLE_DELAYS, Learner, LearningProblem, LearningReport,
+                    LearningSettings, MachineActual)
 
 #: Re-timing rounds before giving up.
 MAX_ROUNDS = 16
@@ -489,19 +489,19 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
 
     tracking = hold(reference.q + _predicted(reference, models, {}).e)
     tracking = project(ended(tracking) if programmed_end else tracking)
-    return learn_at_stops(reference.q, q_start, ts, machine, errors_of,
-                          learning_step(reference, path, kinematics, hold=hold),
-                          passes=passes,
-                          smoothing=LIMITED_SMOOTHING, admissible=within_limits,
-                          progress=progress, line=line,
-                          fallbacks=(("tracking-error pre-compensation", tracking),),
-                          t0=t0, tail_errors_of=tail_errors_of, update=update, local=local,
-                          settle_delays=settle_delays,
-                          repeat_actual=getattr(machine_actual, "repeat", None),
-                          variants=(("resting axes held", hold_resting),),
-                          # every command tried is run, judged and kept ending at the
-                          # programmed end (a segment's own end is not the program's)
-                          finish=ended if programmed_end else None)
+    problem = LearningProblem(reference.q, ts, machine, errors_of,
+                              learning_step(reference, path, kinematics, hold=hold),
+                              line=line, t0=t0, tail_errors_of=tail_errors_of,
+                              repeat_actual=getattr(machine_actual, "repeat", None))
+    settings = LearningSettings(passes=passes, settle_delays=tuple(settle_delays),
+                                smoothing=LIMITED_SMOOTHING, update=update, local=local)
+    learner = Learner(problem, settings, admissible=within_limits, progress=progress,
+                      fallbacks=(("tracking-error pre-compensation", tracking),),
+                      variants=(("resting axes held", hold_resting),),
+                      # every command tried is run, judged and kept ending at the
+                      # programmed end (a segment's own end is not the program's)
+                      finish=ended if programmed_end else None)
+    return learner.learn(q_start)
 
 
 def _scored(errors, scored: tuple[int, int] | None, first: int):
