@@ -617,7 +617,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     feed = None
     if contour_tolerance is None:
         limited = compensate_within_limits(planned, machine_obj.kinematics, models,
-                                           axis_limits, line=line, iterations=iterations,
+                                           axis_limits, iterations=iterations,
                                            progress=round_progress, min_speed=min_speed)
         timings["compensate"] = time.perf_counter() - start
     else:
@@ -810,7 +810,7 @@ def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller
     # at the programmed end point (the controller holds the last command after them anyway)
     traj = with_final_rest(traj, required_final_rest(models))
     limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
-                                       line=traj.line, progress=progress,
+                                       progress=progress,
                                        min_speed=limits.min_speed, method=method,
                                        iterations=iterations, tol_linear=tol_linear,
                                        tol_rotary=tol_rotary, pass_progress=pass_progress)

@@ -106,9 +106,8 @@ class LimitedCompensation:
     result : CompensationResult
         The final compensation, on ``reference``.
     reference : Trajectory
-        The reference after re-timing (the input itself when nothing was slowed).
-    line : ndarray, optional
-        Source line of each sample of ``reference``, when given.
+        The reference after re-timing (the input itself when nothing was slowed), with its
+        source lines where the input had them (:attr:`line`).
     slowdowns : tuple of Slowdown
         Slowed windows, in the time of the original reference.
     planned_index : ndarray, shape (M,)
@@ -135,7 +134,6 @@ class LimitedCompensation:
 
     result: CompensationResult
     reference: Trajectory
-    line: np.ndarray | None
     slowdowns: tuple[Slowdown, ...]
     planned_index: np.ndarray
     rounds: int
@@ -145,6 +143,11 @@ class LimitedCompensation:
     kinks: tuple[tuple[float, float], ...] = ()
     min_speed: float = MIN_SPEED
     smoothed: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def line(self) -> np.ndarray | None:
+        """Source line of each sample of :attr:`reference`, when known (its own)."""
+        return self.reference.line
 
     @property
     def added_time(self) -> float:
@@ -160,7 +163,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     """Compensate ``reference`` (with :func:`~.precompensate.compensate`: ``method``,
     ``iterations``, ``tol_linear``, ``tol_rotary``; ``pass_progress(pass, summary)`` after
     each pass of the first round), slowing it down locally and compensating again until the
-    commands keep ``limits``.
+    commands keep ``limits``. ``line``: the source line of each sample where ``reference``
+    does not carry them itself (they travel with it through every re-timing).
 
     The first round compensates the whole reference. After a re-timing, ``splice=True``
     compensates again only around the slowed windows and splices the result into the
@@ -178,13 +182,16 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                    tol_rotary=tol_rotary)
     ts = reference.ts
     t0 = float(reference.t[0])
-    original_line = line
+    if line is not None:
+        # the lines given travel with the reference (and through its re-timings)
+        reference = replace(reference, line=np.asarray(line))
+    original_line = reference.line
     # samples (of the current reference) whose corrections taper to the planned commands
     # because the floor stops the slowing there; kept through every later re-timing
     floored = np.zeros(reference.n_samples, dtype=bool)
     floored_windows: list[tuple[int, int]] = []
     to_original = np.arange(reference.n_samples, dtype=float)
-    current, current_line = reference, line
+    current = reference
     first_check = None
     if progress is not None:
         progress(1, f"compensate ({current.n_samples} samples)")
@@ -237,7 +244,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             if round_ > 1 or floored.any() or q is not result.trajectory.q:
                 result = _result_for(current, q, result, kinematics, models, options)
             return LimitedCompensation(
-                result=result, reference=current, line=current_line,
+                result=result, reference=current,
                 slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
                 planned_index=to_original, rounds=round_, first_check=first_check, check=check,
                 uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in floored_windows),
@@ -261,11 +268,10 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         # the speed does not change while the axes decelerate to a rest or leave it
         stretch = held_through_stops(stretch, current.q, levels=limits.velocity)
         stretch = np.minimum(stretch, np.maximum(room, 1.0))
-        retimed = retime(current, stretch, line=current_line, ramp=LIMITS_RAMP,
-                         spread=LIMITS_SPREAD)
+        retimed = retime(current, stretch, ramp=LIMITS_RAMP, spread=LIMITS_SPREAD)
         floored = floored[np.clip(np.rint(retimed.old_index).astype(int), 0, floored.size - 1)]
         to_original = np.interp(retimed.old_index, np.arange(current.n_samples), to_original)
-        current, current_line = retimed.trajectory, retimed.line
+        current = retimed.trajectory
         if progress is not None:
             progress(round_ + 1, f"compensate again ({current.n_samples} samples, "
                                  f"{len(retimed.slowdowns)} slowed window(s))")
@@ -286,7 +292,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                                 f"after {max_rounds} compensation round(s): {check.format()}")
     result = _result_for(current, tapered, result, kinematics, models, options)
     return LimitedCompensation(
-        result=result, reference=current, line=current_line,
+        result=result, reference=current,
         slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
         planned_index=to_original, rounds=max_rounds, first_check=first_check, check=final,
         uncompensated=tuple((t0 + a * ts, t0 + b * ts) for a, b in windows),
@@ -392,8 +398,8 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
     q_start = limited.result.trajectory.q
     path = ReferencePath.from_trajectory(reference)
     q, report = learn_commands(reference, q_start, kinematics, models, limits, machine_actual,
-                               passes, line=limited.line, progress=progress, path=path,
-                               update=update, local=local)
+                               passes, progress=progress, path=path, update=update,
+                               local=local)
     result = replace(limited.result, learning=report)
     if q is not q_start:
         after = contour_errors(path, predicted_actual(reference.t, q, models), kinematics)
@@ -423,8 +429,7 @@ def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, 
     errors = _predicted(planned, models, {}, kinematics).contour
     result = replace(limited.result, trajectory=planned, before=errors, after=errors,
                      iterations=0)
-    return replace(limited, result=result, reference=planned,
-                   line=planned.line, slowdowns=(),
+    return replace(limited, result=result, reference=planned, slowdowns=(),
                    planned_index=np.arange(planned.n_samples, dtype=float), check=check,
                    uncompensated=(), kinks=(), smoothed=())
 
@@ -445,6 +450,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     a command ``q`` learning proposes (its lead-in held at the commands already decided); the
     machine model, the limit check and the fallbacks see projected commands, the
     uncompensated ``reference.q`` itself excepted. The command returned is not projected.
+    ``line``: the blocks' source lines where ``reference`` does not carry them.
     ``path``: the reference's curves, where already built. ``update``, ``local``,
     ``settle_delays``: as for :func:`~.stops.learn_at_stops` (a segment that does not hold the
     program's final dwell tries no settled tails). ``programmed_end``: ``reference`` ends where
@@ -452,6 +458,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     sample (:func:`~.programmed_end.end_at_programmed_end`; False for an earlier segment).
     """
     ts, t0 = reference.ts, float(reference.t[0])
+    line = reference.line if line is None else line
     path = ReferencePath.from_trajectory(reference) if path is None else path
     project = (lambda q: q) if project is None else project
 

@@ -89,20 +89,25 @@ class Retiming:
         Old (fractional) sample index of each new sample: the time map s(tau) / ts.
     slowdowns : tuple of Slowdown
         The slowed windows.
-    line : ndarray of int, shape (M,), optional
-        Source line of each new sample (the old sample at or before it), when given.
     """
 
     trajectory: Trajectory
     old_index: np.ndarray
     slowdowns: tuple[Slowdown, ...]
-    line: np.ndarray | None = None
+
+    @property
+    def line(self) -> np.ndarray | None:
+        """Source line of each new sample (the old sample's at or before it), when known: the
+        re-timed trajectory's own."""
+        return self.trajectory.line
 
 
 def retime(traj: Trajectory, stretch: np.ndarray, *, line: np.ndarray | None = None,
            ramp: float = RAMP_TIME, spread: float = SPREAD_TIME) -> Retiming:
     """Slow ``traj`` down locally by at least the factor ``stretch`` (N,) at each sample
-    (1 or below: unchanged). See the module docstring."""
+    (1 or below: unchanged). See the module docstring. The re-timed trajectory keeps the
+    source lines (``line``, else ``traj.line``): each new sample the old sample's at or
+    before it."""
     stretch = np.asarray(stretch, dtype=float)
     n = traj.n_samples
     if stretch.shape != (n,) or not np.all(np.isfinite(stretch)):
@@ -134,12 +139,12 @@ def retime(traj: Trajectory, stretch: np.ndarray, *, line: np.ndarray | None = N
         P = out[:, 5:8]
         O = out[:, 8:11] / np.linalg.norm(out[:, 8:11], axis=1, keepdims=True)
     new_line = None
+    line = traj.line if line is None else np.asarray(line)
     if line is not None:
-        line = np.asarray(line)
         new_line = line[np.clip(np.floor(old_index + 1e-9).astype(int), 0, n - 1)]
-    return Retiming(trajectory=Trajectory(t=t, q=q, P=P, O=O), old_index=old_index,
-                    slowdowns=slowdowns_of(old_index, ts, t0=traj.t[0], line=line),
-                    line=new_line)
+    return Retiming(trajectory=Trajectory(t=t, q=q, P=P, O=O, line=new_line),
+                    old_index=old_index,
+                    slowdowns=slowdowns_of(old_index, ts, t0=traj.t[0], line=line))
 
 
 #: Exact samples either side of a window that its splines pass through, so they join the
