@@ -809,7 +809,7 @@ def test_a_signal_stops_run_between_stages_not_inside_one(work, small, capsys, m
                                                          signum, code, line):
     """The signal comes while the virtual machine runs (compiled code): that stage ends
     normally, the run stops before the next one, with one line and nothing written."""
-    import precontour.workflow as workflow
+    import precontour.workflow.run as workflow   # where run looks the stage up
     real = workflow.check_on_virtual_machine
     finished = []
 

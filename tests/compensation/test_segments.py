@@ -77,7 +77,7 @@ def test_segmented_learning_is_nowhere_worse_and_close_to_learning_the_whole(mac
 def test_short_programs_learn_whole(machine, monkeypatch):
     """At most AT_ONCE_SAMPLES samples, ``run``'s learning is the whole-program learning
     itself (the commands of before): learn_by_segments is not called."""
-    from precontour import workflow
+    from precontour.workflow import run as workflow   # where run looks them up
 
     called = []
     monkeypatch.setattr(workflow, "learn_by_segments",

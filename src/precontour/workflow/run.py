@@ -1,0 +1,383 @@
+"""The ``run`` workflow: program in, checked, compensated program out (:func:`run_program`):
+plan, compensate within the machine's limits (:func:`compensate_keeping_limits`, also what
+``compensate`` does by default), optionally learn against the realistic virtual machine
+(:func:`learn_on_ensemble`) or search the fastest feed within a contour tolerance, and check
+both commands on the virtual machine and its draws."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..compensation.pieces import AT_ONCE_SAMPLES
+from ..compensation.programmed_end import required_final_rest, with_final_rest
+from ..compensation.segments import learn_by_segments
+from ..compensation.within_limits import (LimitedCompensation, compensate_within_limits,
+                                          learn_within_limits, planned_if_uncompensated)
+from ..defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
+                        DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL)
+from ..errors import InputError, ToleranceError, is_whole_number, notice, warning
+from ..files import check_signals
+from ..machine.machine_file import Machine, load_machine
+from ..options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
+                       limit_options, with_former_spellings)
+from ..planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
+from ..simulation.ensemble import MachineEnsemble, ensemble_actual
+from ..toolpath.writers import ProgramInfo, gcode_program, gcode_tolerances
+from ..trajectory.limits import AxisLimits
+from ..trajectory.sampled import Trajectory
+from .checks import check_on_draws, check_on_virtual_machine, worse_in_whole_message
+from .program import RunProgram, plan_run_program, read_run_program
+from .result import RunOutputs, RunResult, check_run_outputs
+
+
+Progress = Callable[[int, int, str], None]
+
+
+def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machine: str | Path,
+                controller: str, tcp: bool = False, dwell: float = DEFAULT_DWELL,
+                corner_tolerance: float = DEFAULT_CORNER_TOLERANCE,
+                corner_orientation_tolerance: float | None =
+                DEFAULT_CORNER_ORIENTATION_TOLERANCE,
+                max_samples: int | None = None, iterations: int = 1,
+                tolerance: np.ndarray | None = None, progress: Progress | None = None,
+                workers: int | None = 1, learn: int | LearningOptions = 0,
+                ensemble: MachineEnsemble | None = None,
+                limits: LimitOptions = LimitOptions(),
+                contour_tolerance: ToleranceOptions | ContourTolerance | None = None,
+                min_speed: float | None = None, feed_scale_max: float | None = None,
+                feed_scale_min: float | None = None,
+                write_anyway: bool | None = None,
+                draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None,
+                tool_table=None) -> RunResult:
+    """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
+    writes. ``outputs``, where given, are checked before anything is computed (None: a library
+    caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
+    and ``controller`` have no default: a program compensated for another machine than the
+    user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``,
+    ``corner_orientation_tolerance``, ``max_samples``:
+    planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
+    of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s);
+    ``tool_table``: G-code tool lengths (as :func:`load_program_trajectory`'s).
+    ``tolerance``: the G-code decimation
+    tolerance per axis (:func:`~.toolpath.writers.gcode_tolerances`).
+
+    ``learn``: passes of learning (a number, or :class:`~.options.LearningOptions`) against
+    the realistic virtual machine after the compensation within limits
+    (:func:`~.compensation.within_limits.learn_within_limits`; 0: none; skipped, with a
+    notice, for a program not sampled at the servo period; segment by segment above
+    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
+    draws of the ensemble (the options', else ``ensemble``, default
+    :class:`~.simulation.ensemble.MachineEnsemble` ()) and the result nowhere worse than
+    uncompensated on them, block by block (each source line; :func:`learn_on_ensemble`).
+    ``limits``: :class:`~.options.LimitOptions`, whose ``min_speed`` is the floor of the
+    local slow-downs that keep the limits, a fraction of the planned speed (below it the
+    planned commands are kept); ``run`` always keeps them.
+    ``contour_tolerance``: :class:`~.options.ToleranceOptions` (or its ``tolerance``
+    alone): find the fastest motion whose compensated contour errors keep it on the
+    realistic virtual machine (each search's result checked on the draws of ``ensemble``,
+    default :class:`~.simulation.ensemble.MachineEnsemble` ()), between its
+    ``feed_scale_min`` and ``feed_scale_max`` times the programmed feed, and the
+    uncompensated baseline the same way (:func:`~.planning.tolerance.feed_within_tolerance`;
+    ``RunResult.feed``); where the compensated one is not met even at the lowest feed, raise
+    :class:`~precontour.errors.ToleranceError` naming the place unless ``write_anyway``.
+    ``min_speed``, ``feed_scale_max``, ``feed_scale_min``, ``write_anyway``: the former
+    spellings of those options' fields, kept (with an options object, give them there).
+    ``draws``: the machines both commands are checked on, the machine file's and
+    ``draws - 1`` draws of the ensemble (:func:`check_on_draws`; ``RunResult.draws``, None
+    for 1).
+    ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
+    when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
+    samples; more than 1 needs the calling script's own code under
+    ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
+    Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
+    machine's limits cannot be kept."""
+    if not is_whole_number(draws) or draws < 1:
+        raise InputError(f"must be a whole number >= 1, got {draws!r}", field="--draws")
+    learning = learning_options(learn)
+    limits = with_former_spellings(limits, LimitOptions, limit_options, "limits",
+                                   min_speed=min_speed)
+    if not limits.keep:
+        raise InputError("run keeps the machine's limits (it writes a program a machine "
+                         "runs)", field="--ignore-limits")
+    contour_tolerance = with_former_spellings(
+        contour_tolerance, ToleranceOptions, ToleranceOptions, "contour_tolerance",
+        feed_scale_max=feed_scale_max, feed_scale_min=feed_scale_min,
+        write_anyway=write_anyway)
+    return _run_program(program, outputs, machine=machine, controller=controller, tcp=tcp,
+                        dwell=dwell, corner_tolerance=corner_tolerance,
+                        corner_orientation_tolerance=corner_orientation_tolerance,
+                        max_samples=max_samples, iterations=iterations, tolerance=tolerance,
+                        progress=progress, workers=workers, learning=learning,
+                        ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
+                        draws=draws, format=format, tool_table=tool_table)
+
+
+def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_tolerance,
+                 corner_orientation_tolerance,
+                 max_samples, iterations, tolerance, progress, workers,
+                 learning: LearningOptions, ensemble, limits: LimitOptions,
+                 feed_options: ToleranceOptions, draws: int, format: str | None,
+                 tool_table=None) -> RunResult:
+    learn = learning.passes
+    # the draws learning decides on and run checks on: the options', else ``ensemble``
+    learning_ensemble = learning.ensemble or ensemble or MachineEnsemble()
+    learner = controller if learning.controller is None else learning.controller
+    min_speed = limits.min_speed
+    timings: dict[str, float] = {}
+    total = 4
+
+    def step(done: int, message: str) -> None:
+        check_signals()  # between stages: where a SIGTERM or Ctrl-C stops the run
+        if progress is not None:
+            progress(done, total, message)
+
+    inputs = [program] + ([machine] if Path(str(machine)).exists() else [])
+    if outputs is not None:
+        # checked before computing, so that a bad output location is said at once
+        check_run_outputs(outputs, inputs)
+    tolerance = gcode_tolerances() if tolerance is None else np.asarray(tolerance, dtype=float)
+    start = time.perf_counter()
+    # every input is read and checked before the first progress line, so that a bad one
+    # is the first thing said
+    machine_obj = load_machine(machine)
+    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
+                              max_samples=max_samples, format=format,
+                              tool_table=tool_table)
+    # the highest feed of the search: the programmed one for an NC program, twice CL data's
+    feed_options = feed_options.for_format(source.format)
+    contour_tolerance = feed_options.tolerance
+    feed_scale_max, feed_scale_min = feed_options.feed_scale_max, feed_options.feed_scale_min
+    write_anyway = feed_options.write_anyway
+    step(0, f"plan {program}")
+    planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
+                                            corner_tolerance=corner_tolerance,
+                                            corner_orientation_tolerance=(
+                                                corner_orientation_tolerance),
+                                            max_samples=max_samples)
+    # a final rest long enough for the corrections to taper to zero (the compensated program
+    # ends at its programmed end point): the controller holds the last command anyway
+    end_rest = required_final_rest(models)
+    as_planned = planned.n_samples
+    planned = with_final_rest(planned, end_rest)
+    final_rest_added = (planned.n_samples - as_planned) * planned.ts
+    line = planned.line
+    timings["plan"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    axis_limits = AxisLimits.from_machine(machine_obj)
+
+    def round_progress(round_: int, message: str) -> None:
+        step(1, f"{message}, round {round_}")
+
+    feed = None
+    if contour_tolerance is None:
+        limited = compensate_within_limits(planned, machine_obj.kinematics, models,
+                                           axis_limits, iterations=iterations,
+                                           progress=round_progress, min_speed=min_speed)
+        timings["compensate"] = time.perf_counter() - start
+    else:
+        programmed = planned
+        if feed_scale_max != 1.0:
+            step(1, f"plan {program} at {feed_scale_max:g} x the programmed feed")
+            planned = with_final_rest(plan_run_program(
+                source, machine_obj, dwell=dwell, corner_tolerance=corner_tolerance,
+                corner_orientation_tolerance=corner_orientation_tolerance,
+                max_samples=max_samples, feed_scale=feed_scale_max)[0], end_rest)
+            line = planned.line
+        def learned(limited):
+            # a timing slowed beyond the learning's size is compensated without it
+            if not can_learn(limited.reference, machine_obj):
+                return limited
+            return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
+                                     learn, ensemble=learning_ensemble)
+
+        refine = learned if learn and can_learn(planned, machine_obj) else None
+        feed = feed_within_tolerance(
+            planned, machine_obj, controller, contour_tolerance, programmed=programmed,
+            refine=refine, exempt_lines=_rapid_lines(source),
+            feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
+            line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
+            progress=lambda message: step(1, message), models=models, limits=axis_limits,
+            limits_min_speed=min_speed, iterations=iterations,
+            where="line" if source.format == "gcode" else "row")
+        timings["feed within tolerance"] = time.perf_counter() - start
+        found = feed.compensated
+        if not found.met and not write_anyway:
+            raise ToleranceError(_tolerance_message(feed, feed_scale_min))
+        # the compensated search's commands, with the slow-downs against the upper-bound plan
+        limited = replace(found.limited, slowdowns=found.slowdowns,
+                          planned_index=found.planned_index)
+    if learn and feed is None:
+        if can_learn(limited.reference, machine_obj):
+            step(1, f"learn against the virtual machine ({learn} pass(es))")
+            start = time.perf_counter()
+            limited = learn_on_ensemble(
+                limited, machine_obj, learner, models, axis_limits, learn,
+                ensemble=learning_ensemble, planned=planned,
+                # each command tried (a long program's segment by segment): learning on an
+                # hour-long program runs for many minutes
+                progress=lambda label, summary: step(
+                    1, f"learn: {label}, worst draw tip max {summary['tip_max_um']:.3g} um"))
+            timings["learn"] = time.perf_counter() - start
+
+    step(2, f"virtual machine, uncompensated and compensated "
+            f"({limited.reference.n_samples} samples each)")
+    start = time.perf_counter()
+    simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
+                                         machine, controller, workers=workers)
+    timings["virtual machine (both)"] = time.perf_counter() - start
+    checked = None
+    if draws > 1:
+        check_ensemble = replace(learning_ensemble, draws=draws)
+        step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
+                + ("(twice: its repeatability) " if check_ensemble.rerun_differs else "")
+                + "and compensated")
+        start = time.perf_counter()
+        checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
+                                 controller, simulated, line=limited.line,
+                                 ensemble=check_ensemble)
+        timings["virtual machine (draws)"] = time.perf_counter() - start
+        worse = checked.worse_in_whole()
+        if worse:
+            warning(worse_in_whole_message(worse,
+                                           learned=limited.result.learning is not None))
+
+    step(3, "write G-code")
+    start = time.perf_counter()
+    commands = limited.result.trajectory
+    learning = limited.result.learning
+    info = ProgramInfo(machine=machine_obj.name, controller=controller,
+                       method=f"contour pre-compensation within axis limits, passes "
+                              f"{limited.result.iterations}"
+                              + (f", learned against the virtual machine ({learn} pass(es)): "
+                                 f"kept {learning.chosen}" if learning is not None else "")
+                              + (f", fastest feed within {feed.tolerance.describe()} on the "
+                                 "realistic virtual machine" if feed is not None else ""),
+                       source=str(program))
+    program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
+                                 passthrough=passthrough, line=limited.line,
+                                 axis_names=machine_obj.axis_names)
+    timings["gcode"] = time.perf_counter() - start
+    return RunResult(source=str(program), machine=machine_obj, controller=controller,
+                     planned=planned, passthrough=passthrough, limited=limited,
+                     simulated_before=simulated[0], simulated_after=simulated[1],
+                     program=program_text, tolerance=tolerance, timings=timings,
+                     stream=None if outputs is None else outputs.stream, feed=feed,
+                     draws=checked, source_format=source.format,
+                     final_rest_added=final_rest_added)
+
+
+def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
+    """The lines of a G-code program's rapids (G0): they cut nothing, so a contour-error
+    tolerance does not apply to them (CL data has none)."""
+    program = source.program
+    if program is None:
+        return ()
+    rapid = np.asarray(program.rapid, dtype=bool)
+    feed_lines = set(np.asarray(program.line)[~rapid].tolist())
+    # a line that also holds a feed move (none in RS274, but safe) keeps its tolerance
+    return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
+
+
+def can_learn(reference: Trajectory, machine_obj: Machine, *, whole: bool = False) -> bool:
+    """Whether learning against the virtual machine can run on ``reference``; says why not,
+    in one notice: the virtual machine runs at the servo period. Learning within the limits
+    runs a trajectory of any length (segment by segment above
+    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, :mod:`.compensation.segments`);
+    ``whole``: learning that runs the whole trajectory at once (the unconstrained
+    compensation's), refused above that many samples (compensated in pieces, linearly)."""
+    if not machine_obj.at_servo_period(reference.ts):
+        notice(f"no learning: the trajectory's sample period {reference.ts:g} s is not the "
+               f"servo period {machine_obj.servo_period:g} s of the virtual machine")
+        return False
+    if whole and reference.n_samples > AT_ONCE_SAMPLES:
+        notice(f"no learning: {reference.n_samples} samples are more than "
+               f"{AT_ONCE_SAMPLES} (compensated in pieces)")
+        return False
+    return True
+
+
+def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
+    """One line: where the compensated search misses the tolerance, by how much."""
+    misses = feed.compensated.misses
+    first = misses[0]
+    why = (f"even at {100 * feed_scale_min:g} % of the programmed feed"
+           if first.floor or first.at_rest
+           else f"after {feed.compensated.rounds} rounds of slowing down")
+    more = f" (and {len(misses) - 1} more place(s))" if len(misses) > 1 else ""
+    return (f"the compensated program does not keep the tolerance "
+            f"{feed.tolerance.describe()} on the realistic virtual machine {why}: "
+            f"{first.format()}{more}; --write-anyway writes it nevertheless")
+
+
+def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
+                      models, limits: AxisLimits, passes: int, *,
+                      ensemble: MachineEnsemble | None = None, progress=None,
+                      planned: Trajectory | None = None) -> LimitedCompensation:
+    """``limited`` improved by ``passes`` passes of learning within ``limits``
+    (:func:`~.compensation.within_limits.learn_within_limits`) against the draws of
+    ``ensemble`` of the realistic virtual machine running ``controller``
+    (:func:`~.simulation.ensemble.ensemble_actual`): every choice is taken on the worst draw,
+    and the command kept is nowhere worse than the uncompensated one on every draw, in whole
+    and block by block. Above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, segment
+    by segment (:func:`~.compensation.segments.learn_by_segments`). ``planned``: the
+    trajectory ``limited`` was compensated from; where learning keeps the uncompensated
+    command everywhere, that trajectory is returned as it was planned, without the slow-downs
+    made for the corrections (:func:`~.compensation.within_limits.planned_if_uncompensated`).
+    """
+    if limited.reference.n_samples > AT_ONCE_SAMPLES:
+        learned = learn_by_segments(
+            limited, machine_obj.kinematics, models, limits,
+            lambda t, start: ensemble_actual(t, machine_obj, controller, ensemble, start=start),
+            passes,
+            progress=progress)
+    else:
+        actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
+        learned = learn_within_limits(limited, machine_obj.kinematics, models, limits, actual,
+                                      passes, progress=progress)
+    if planned is None:
+        return learned
+    return planned_if_uncompensated(learned, planned, machine_obj.kinematics, models, limits)
+
+
+def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller: str, *,
+                              learn: int | LearningOptions = 0,
+                              limits: LimitOptions = LimitOptions(), method: str = "contour",
+                              iterations: int = 1, tol_linear: float | None = None,
+                              tol_rotary: float | None = None, progress=None,
+                              pass_progress=None, learning_progress=None
+                              ) -> LimitedCompensation:
+    """What ``compensate`` does by default, as ``run`` does: compensate ``traj`` within the
+    machine's axis limits (slowing it down locally, never below ``limits.min_speed``, and
+    compensating again where needed; :func:`~.compensation.within_limits.
+    compensate_within_limits` with ``method``, ``iterations``, ``tol_linear``,
+    ``tol_rotary``), then, for ``learn`` passes (a number or :class:`~.options.
+    LearningOptions`), learn within them against the ensemble of the realistic virtual
+    machine running the learning controller (default ``controller``;
+    :func:`learn_on_ensemble`). The commands keep the limits, so ``export`` takes them.
+    ``progress(round, message)`` reports the compensation rounds, ``pass_progress(pass,
+    summary)`` the first round's passes, ``learning_progress(label, summary)`` each command
+    learning tries."""
+    learning = learning_options(learn)
+    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    axis_limits = AxisLimits.from_machine(machine_obj)
+    # a final rest long enough for the corrections to taper to zero, so that the commands end
+    # at the programmed end point (the controller holds the last command after them anyway)
+    traj = with_final_rest(traj, required_final_rest(models))
+    limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
+                                       progress=progress,
+                                       min_speed=limits.min_speed, method=method,
+                                       iterations=iterations, tol_linear=tol_linear,
+                                       tol_rotary=tol_rotary, pass_progress=pass_progress)
+    if learning.passes:
+        limited = learn_on_ensemble(limited, machine_obj, learning.controller or controller,
+                                    models, axis_limits, learning.passes,
+                                    ensemble=learning.ensemble, progress=learning_progress,
+                                    planned=traj)
+    return limited
