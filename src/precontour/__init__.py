@@ -4,19 +4,24 @@ The package is laid out by pipeline stage; data flows one way, and a stage impor
 stages before it::
 
     machine/       machine file, drives, controllers, kinematics
+    linuxcnc/      LinuxCNC configurations and the headless runs that record every period
     toolpath/      programs in: CL CSV, APT CL data, G-code (Program)
     trajectory/    path splines, feed planning, program timing, 1 kHz axis commands (Trajectory)
     prediction/    minimum-jerk spline fit, closed-form tracking error, contour errors
     compensation/  pre-compensation (contour, tracking)
     simulation/    the virtual machine and its control laws
+    planning/      the fastest feed within a contour tolerance
     identification/ drive models from servo logs, the excitation motion
     options.py     the jobs' options as small frozen objects (learning, limits, tolerance)
-    workflow.py    run and export: program in, compensated program (G-code, halstreamer) out
+    workflow/      run and export: program in, compensated program (G-code, halstreamer) out
+    batch.py       run over many programs and machines (processes or a Dask cluster)
     system.py      the servo system (machine + controller, made once) and the entry points
                    that take it first: predict, compensate, simulate, contour_errors
     reports/       demo and compare: figures, tables, HTML (the only matplotlib users)
+    cnc/           the real controller: its trace, the program's own blocks corrected
     tables.py      checked CSV / .npz / .parquet in and out
     defaults.py    option defaults and names the help shows (standard library only)
+    parallel.py    the jobs setting and the executors of independent work
     cli.py         the ``precontour`` command
 
 The names below are the entry points a library user needs; each is imported when first used.
