@@ -45,7 +45,7 @@ COMPILE_SECONDS: dict[str, float] = {
     "precontour.prediction.contour": 5.0,        # 4.0 before its sample tree (+0.8 s measured)
     "precontour.trajectory.pathspline": 2.8,
     "precontour.trajectory.feedplan": 2.8,
-    "precontour.simulation.virtual_machine": 2.5,
+    "precontour.simulation._integrators": 2.5,   # the virtual machine's time loops
     "precontour.piecewise": 2.1,
     "precontour.simulation.control_laws": 2.0,
     "precontour.prediction.tracking": 1.7,
