@@ -22,7 +22,7 @@ stages before it::
     tables.py      checked CSV / .npz / .parquet in and out
     defaults.py    option defaults and names the help shows (standard library only)
     parallel.py    the jobs setting and the executors of independent work
-    cli.py         the ``precontour`` command
+    cli/           the ``precontour`` command: its parser, and what each command calls
 
 The names below are the entry points a library user needs; each is imported when first used.
 Each job has one: ``servo = load_servo(machine, controller)`` is made once and goes first in
