@@ -165,33 +165,8 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
     t = traj.t
     tol_linear, tol_rotary = compensation_tolerances(tol_linear, tol_rotary)
 
-    # Each fit starts from the knots of the previous one: a corrected command needs the
-    # knots of the command it corrects and more (issue 11: the corrected commands took three
-    # times the rounds of the original when fitted from scratch).
-    knots = None
-    # The step-5 command keeps the rotary axes of the step-3 one: their predictions are reused.
-    previous = None
-
-    def predict(q):
-        nonlocal knots, previous
-        prediction = predict_tracking(t, q, models, initial_knots=knots, previous=previous,
-                                      tol_linear=tol_linear, tol_rotary=tol_rotary)
-        knots = prediction.fits.knot_indices
-        previous = (q, prediction)
-        return q - prediction(t)
-
-    def searched(q_actual):
-        """Contour errors of q_actual, and what a pass needs of them: the actual
-        orientations and their closest reference orientations."""
-        P_act, O_act = kinematics.forward(q_actual)
-        errors, _, O_closest = reference.errors(P_act, O_act, with_points=True)
-        return errors, (O_act, errors.orientation_parameter, O_closest)
-
-    def errors_of(q_actual):
-        return searched(q_actual)[0]
-
-    def tail_errors_of(q_actual, first):
-        return reference.errors(*kinematics.forward(q_actual), t=reference.t[first:])
+    model = _PassModel(t, models, reference, kinematics, tol_linear, tol_rotary)
+    predict, searched, errors_of = model.predict, model.searched, model.errors_of
 
     def ended(q):
         # the controller holds the last command after the program: each pass's commands end
@@ -237,7 +212,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         problem = LearningProblem(
             traj.q, traj.ts, machine_actual, errors_of,
             learning_step(traj, reference, kinematics, hold=hold), line=traj.line,
-            t0=float(t[0]), tail_errors_of=tail_errors_of,
+            t0=float(t[0]), tail_errors_of=model.tail_errors_of,
             repeat_actual=getattr(machine_actual, "repeat", None))
         learner = Learner(
             problem, LearningSettings(passes=learning_passes), progress=learning_progress,
@@ -267,6 +242,44 @@ def learning_step(traj: Trajectory, reference: ReferencePath, kinematics, hold=N
         q = _contour_pass(q_cmd, q_act, traj, reference, kinematics, actual)
         return q if hold is None else hold(q)
     return step
+
+
+class _PassModel:
+    """What the passes of :func:`compensate` predict with: the linear error models' actual
+    motion of a command (each fit starting from the knots of the previous one: a corrected
+    command needs the knots of the command it corrects and more; issue 11: the corrected
+    commands took three times the rounds of the original when fitted from scratch; and the
+    step-5 command keeping the rotary axes of the step-3 one, whose predictions are reused),
+    and the contour errors of a motion against the reference."""
+
+    def __init__(self, t, models, reference, kinematics, tol_linear, tol_rotary):
+        self.t, self.models, self.reference, self.kinematics = t, models, reference, kinematics
+        self.tol_linear, self.tol_rotary = tol_linear, tol_rotary
+        self.knots = None
+        self.previous = None
+
+    def predict(self, q):
+        """The predicted actual motion of the commands ``q``."""
+        prediction = predict_tracking(self.t, q, self.models, initial_knots=self.knots,
+                                      previous=self.previous, tol_linear=self.tol_linear,
+                                      tol_rotary=self.tol_rotary)
+        self.knots = prediction.fits.knot_indices
+        self.previous = (q, prediction)
+        return q - prediction(self.t)
+
+    def searched(self, q_actual):
+        """Contour errors of q_actual, and what a pass needs of them: the actual
+        orientations and their closest reference orientations."""
+        P_act, O_act = self.kinematics.forward(q_actual)
+        errors, _, O_closest = self.reference.errors(P_act, O_act, with_points=True)
+        return errors, (O_act, errors.orientation_parameter, O_closest)
+
+    def errors_of(self, q_actual):
+        return self.searched(q_actual)[0]
+
+    def tail_errors_of(self, q_actual, first):
+        return self.reference.errors(*self.kinematics.forward(q_actual),
+                                     t=self.reference.t[first:])
 
 
 def _contour_pass(q_cmd, q_act, traj, reference, kinematics, predict, known=None):

@@ -226,27 +226,9 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                     1, f"learn: {label}, worst draw tip max {summary['tip_max_um']:.3g} um"))
             timings["learn"] = time.perf_counter() - start
 
-    step(2, f"virtual machine, uncompensated and compensated "
-            f"({limited.reference.n_samples} samples each)")
-    start = time.perf_counter()
-    simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
-                                         machine, controller, workers=workers)
-    timings["virtual machine (both)"] = time.perf_counter() - start
-    checked = None
-    if draws > 1:
-        check_ensemble = replace(learning_ensemble, draws=draws)
-        step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
-                + ("(twice: its repeatability) " if check_ensemble.rerun_differs else "")
-                + "and compensated")
-        start = time.perf_counter()
-        checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
-                                 controller, simulated, line=limited.line,
-                                 ensemble=check_ensemble)
-        timings["virtual machine (draws)"] = time.perf_counter() - start
-        worse = checked.worse_in_whole()
-        if worse:
-            warning(worse_in_whole_message(worse,
-                                           learned=limited.result.learning is not None))
+    simulated, checked = _check_run(limited, machine, machine_obj, controller, draws,
+                                    replace(learning_ensemble, draws=max(draws, 1)),
+                                    workers=workers, step=step, timings=timings)
 
     step(3, "write G-code")
     start = time.perf_counter()
@@ -271,6 +253,35 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                      stream=None if outputs is None else outputs.stream, feed=feed,
                      draws=checked, source_format=source.format,
                      final_rest_added=final_rest_added)
+
+
+def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: Machine,
+               controller: str, draws: int, ensemble: MachineEnsemble, *, workers, step,
+               timings: dict[str, float]):
+    """``run``'s check of both commands on the realistic virtual machine: the machine file's
+    machine (:func:`check_on_virtual_machine`), then with ``draws`` > 1 the draws of
+    ``ensemble`` (:func:`check_on_draws`), a warning where the compensated commands are
+    worse in whole. The two results (uncompensated, compensated) and the draws' check (None
+    for one draw); ``step(done, message)`` reports, ``timings`` gets the seconds."""
+    step(2, f"virtual machine, uncompensated and compensated "
+            f"({limited.reference.n_samples} samples each)")
+    start = time.perf_counter()
+    simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
+                                         machine, controller, workers=workers)
+    timings["virtual machine (both)"] = time.perf_counter() - start
+    if draws <= 1:
+        return simulated, None
+    step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
+            + ("(twice: its repeatability) " if ensemble.rerun_differs else "")
+            + "and compensated")
+    start = time.perf_counter()
+    checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
+                             controller, simulated, line=limited.line, ensemble=ensemble)
+    timings["virtual machine (draws)"] = time.perf_counter() - start
+    worse = checked.worse_in_whole()
+    if worse:
+        warning(worse_in_whole_message(worse, learned=limited.result.learning is not None))
+    return simulated, checked
 
 
 def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
