@@ -15,42 +15,15 @@ from precontour.compensation.programmed_end import (END_HOLD, END_REST_TIME_CONS
                                                     final_rest_start, required_final_rest,
                                                     with_final_rest)
 from precontour.system import compensate, load_servo
-from precontour.toolpath import ToolPath
 from precontour.trajectory import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 from precontour.trajectory.limits import check_limits
 from precontour.trajectory.sampled import Trajectory
 from precontour.workflow import run_program
 
-from scipy.interpolate import make_interp_spline
+from measured_paths import fan25, flank
 
 gcodeparser = pytest.importorskip("gcodeparser")
-
-
-def _tilted(tilt_x, tilt_y):
-    O = np.stack([np.sin(tilt_y), np.sin(tilt_x) * np.cos(tilt_y),
-                  np.cos(tilt_x) * np.cos(tilt_y)], axis=1)
-    return O / np.linalg.norm(O, axis=1, keepdims=True)
-
-
-def fan25():
-    """scripts/measure_compensation.py's `fan25` (as in tests/planning/test_tolerance.py)."""
-    u = np.linspace(0.0, 1.0, 25)
-    P = np.stack([20.0 * np.sin(np.pi * u), 60.0 * u - 30.0, 4.0 * np.sin(2 * np.pi * u)], axis=1)
-    return ToolPath(P=P, O=_tilted(0.5 * np.sin(1.75 * np.pi * u), 0.1 + 0.15 * u))
-
-
-def flank():
-    """scripts/measure_compensation.py's `flank` (as in tests/planning/test_tolerance.py)."""
-    s = np.linspace(0.0, 1.0, 40)
-    knots = np.linspace(0.0, 1.0, 6)
-    lower = make_interp_spline(knots, np.array(
-        [[-40, -10, 0], [-20, 8, 2], [0, 12, 0], [20, 4, -3], [35, -12, 0], [45, -25, 2.0]]), k=3)
-    upper = make_interp_spline(knots, np.array(
-        [[-35, -18, 30], [-18, 2, 31], [4, 16, 30], [18, 12, 28], [38, -4, 30], [52, -14, 31.0]]),
-        k=3)
-    P, top = lower(s), upper(s)
-    return ToolPath(P=P, O=(top - P) / np.linalg.norm(top - P, axis=1, keepdims=True))
 
 
 PATHS = {"paper": lambda: builtin_path("paper"), "circle": lambda: builtin_path("circle"),

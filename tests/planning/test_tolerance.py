@@ -5,7 +5,6 @@ longer program; the speed limit of a slow-down against brute force."""
 
 import numpy as np
 import pytest
-from scipy.interpolate import make_interp_spline
 
 from precontour.cli import main
 from precontour.errors import ToleranceError
@@ -16,40 +15,13 @@ from precontour.prediction.contour import ReferencePath
 from precontour.simulation.ensemble import MachineEnsemble
 from precontour.simulation.virtual_machine import REALISTIC, simulate
 from precontour.tables import read_trajectory
-from precontour.toolpath import ToolPath
 from precontour.trajectory.generate import generate_trajectory
 from precontour.workflow import RunOutputs, run_program, write_run_outputs
 
 from conftest import nanometre_draws
+from measured_paths import fan25, flank
 
 TOLERANCE = 0.010   # mm
-
-
-def _tilted(tilt_x, tilt_y):
-    O = np.stack([np.sin(tilt_y), np.sin(tilt_x) * np.cos(tilt_y),
-                  np.cos(tilt_x) * np.cos(tilt_y)], axis=1)
-    return O / np.linalg.norm(O, axis=1, keepdims=True)
-
-
-def fan25():
-    """scripts/measure_compensation.py's `fan25`: the tip reverses in x mid-path, the tool
-    fans about x through vertical and ends while still turning (unlike the built-in paths)."""
-    u = np.linspace(0.0, 1.0, 25)
-    P = np.stack([20.0 * np.sin(np.pi * u), 60.0 * u - 30.0, 4.0 * np.sin(2 * np.pi * u)], axis=1)
-    return ToolPath(P=P, O=_tilted(0.5 * np.sin(1.75 * np.pi * u), 0.1 + 0.15 * u))
-
-
-def flank():
-    """scripts/measure_compensation.py's `flank`: flank milling between two B-spline curves."""
-    s = np.linspace(0.0, 1.0, 40)
-    knots = np.linspace(0.0, 1.0, 6)
-    lower = make_interp_spline(knots, np.array(
-        [[-40, -10, 0], [-20, 8, 2], [0, 12, 0], [20, 4, -3], [35, -12, 0], [45, -25, 2.0]]), k=3)
-    upper = make_interp_spline(knots, np.array(
-        [[-35, -18, 30], [-18, 2, 31], [4, 16, 30], [18, 12, 28], [38, -4, 30], [52, -14, 31.0]]),
-        k=3)
-    P, top = lower(s), upper(s)
-    return ToolPath(P=P, O=(top - P) / np.linalg.norm(top - P, axis=1, keepdims=True))
 
 
 #: A G-code program with an interior stop (G4) and a rapid up (G0, line 8) between two curved
