@@ -175,10 +175,9 @@ class LineReading:
         text, comments = written
         return text.upper().translate(_BLANKS), comments
 
-    def code_as_written(self, raw: str):
-        """(text, comments) of a line: the part that holds its code as written, comments
-        blanked out in their places (so that a refusal can name a construct as written); None
-        for a line that is skipped."""
+    def block_text(self, raw: str) -> str | None:
+        """A line's text without the blanks at its ends and its block-delete ``/``; None for a
+        line that is skipped (empty, ``%``, or block-deleted)."""
         s = raw.strip()
         if not s or s[0] == "%":
             return None
@@ -186,6 +185,15 @@ class LineReading:
             if self.block_delete:
                 return None
             s = s[1:]
+        return s
+
+    def code_as_written(self, raw: str):
+        """(text, comments) of a line: the part that holds its code as written, comments
+        blanked out in their places (so that a refusal can name a construct as written); None
+        for a line that is skipped."""
+        s = self.block_text(raw)
+        if s is None:
+            return None
         comments = []
         if ";" in s:
             # a ';' outside a ( ) comment makes the rest of the line a comment

@@ -121,13 +121,9 @@ class SinumerikBlocks:
     def sinumerik_prepare(self, raw: str):
         """The parsed items of a line with Sinumerik constructs, or None for a line the
         RS274 path reads (plain words, a ``( )`` comment)."""
-        s = raw.strip()
-        if not s or s[0] == "%":
+        s = self.block_text(raw)
+        if s is None:
             return None
-        if s[0] == "/":
-            if self.block_delete:
-                return None
-            s = s[1:]
         code = strip_comment(s)
         if not any(c.isalpha() for c in code):
             return None
