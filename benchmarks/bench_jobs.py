@@ -45,7 +45,7 @@ def _stage(name: str, traj, folder: Path):
     from precontour.workflow import check_on_draws
 
     machine = load_machine("zhang2013")
-    models = machine.controller(CONTROLLER).error_models(machine.drives)
+    models = machine.error_models(CONTROLLER)
     if name == "virtual machine (5 axes)":
         return lambda: simulate_trajectory(traj, machine, CONTROLLER)
     if name == "fit + predict (5 axes)":

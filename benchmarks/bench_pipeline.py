@@ -93,7 +93,7 @@ def _stage(name: str, traj):
     from bench_trajectory import synthetic_path
 
     machine = load_machine("zhang2013")
-    models = machine.controller(CONTROLLER).error_models(machine.drives)
+    models = machine.error_models(CONTROLLER)
     if name == "trajectory generation":
         toolpath = synthetic_path(int(round(traj.n_samples / SAMPLES_PER_POINT)))
         return lambda: generate_trajectory(toolpath, machine)
@@ -174,7 +174,7 @@ def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
         return Trajectory(index * ts, base.q[k], base.P[k], base.O[k])
 
     machine = load_machine("zhang2013")
-    models = machine.controller(CONTROLLER).error_models(machine.drives)
+    models = machine.error_models(CONTROLLER)
     pieces = piece_samples or PIECE_SAMPLES
     result = {"samples": n, "duration": n * ts}
 

@@ -46,7 +46,7 @@ def best_of(fn, repeat):
 def main(argv: list[str]) -> None:
     sizes = [2_500, 25_000] if "--quick" in argv else [2_500, 25_000, 250_000, 1_000_000]
     machine = load_machine("zhang2013")
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     print(f"{'samples':>10} {'fit+predict s':>14} {'us/sample':>10} {'knots (X Y Z A C)':>28} "
           f"{'lsim s':>9} {'lsim/ours':>10}")
     for n in sizes:

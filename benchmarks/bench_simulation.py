@@ -46,7 +46,7 @@ def run_one(kind: str, n: int) -> dict:
     t, q = command(n, machine.servo_period)
     if kind == "lsim":
         from scipy import signal
-        models = machine.controller(CONTROLLER).error_models(machine.drives)
+        models = machine.error_models(CONTROLLER)
         start = time.perf_counter()
         for i, m in enumerate(models):
             signal.lsim((m.num, m.den), q[:, i] - q[0, i], t)

@@ -142,7 +142,7 @@ def main(paths: list[str]) -> None:
         traj = trajectory_of(path, machine)
         reference = ReferencePath.from_trajectory(traj)
         for controller in CONTROLLERS:
-            models = machine.controller(controller).error_models(machine.drives)
+            models = machine.error_models(controller)
 
             def run(q_traj, options):
                 sim = simulate(traj.t, q_traj.q, machine, controller, **options)

@@ -173,7 +173,7 @@ def main() -> None:
                                    "torque fit %", "windows"], rows, "lrrrrrrrr"))
     # "plant": the hidden plant's own continuous linear model (what a perfect J, B would give).
     models = {"identified": result.identified_models(),
-              "nominal": base.controller(args.controller).error_models(base.drives),
+              "nominal": base.error_models(args.controller),
               "plant": base.controller(args.controller).error_models(plant.drives)}
     # Learning models: the realistic virtual machine with the drives of each machine.
     learning = {"identified": identified, "nominal": base, "plant": plant,

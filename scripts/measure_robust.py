@@ -102,7 +102,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.paths.split(","):
         for controller in args.controllers.split(","):
-            models = machine.controller(controller).error_models(machine.drives)
+            models = machine.error_models(controller)
             rows = {mode: dict(max=[], mean=[], worse=0, runs=[], seconds=[]) for mode in MODES}
             for draw, path in enumerate(input_draws(toolpath(name), args.draws)):
                 traj = generate_trajectory(path, machine)

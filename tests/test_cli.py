@@ -179,7 +179,7 @@ def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, cap
 
     machine = load_machine("zhang2013")
     traj = read_trajectory(paper_csv)
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     linear = compensate(with_final_rest(traj, required_final_rest(models)),
                         machine.kinematics, models)
     for options in (["--ignore-limits"], []):

@@ -125,7 +125,7 @@ def test_a_long_program_in_pieces_is_the_same_with_one_job_and_with_two():
     from precontour.trajectory.generate import generate_trajectory
 
     machine = load_machine("zhang2013")
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     traj = generate_trajectory(builtin_path("fan"), machine)
     pieces = dict(piece_samples=traj.n_samples // 4, at_once_samples=traj.n_samples // 4)
     out = {}

@@ -98,7 +98,7 @@ def load_servo(machine: str | Path | Machine, controller: str) -> Servo:
     :class:`~precontour.machine.Machine`) running ``controller``. A controller without
     closed-loop models (a nonlinear one) is refused here, with the file and the name."""
     machine_obj = machine if isinstance(machine, Machine) else load_machine(machine)
-    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    models = machine_obj.error_models(controller)
     return Servo(machine=machine_obj, controller=controller, models=tuple(models),
                  limits=AxisLimits.from_machine(machine_obj))
 

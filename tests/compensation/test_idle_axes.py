@@ -74,7 +74,7 @@ def test_quantised_encoder_circle_not_made_worse(machine, circle):
     it). With the taper it comes 10 ms before the end: 7.13 um within the program, 9.45 um at
     most over 0.5 s of holding after it. Learning against the machine handles that slip."""
     assert np.ptp(circle.q[:, 0]) < 1e-9
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     reference = ReferencePath.from_trajectory(circle)
     run = dict(REALISTIC, encoder_resolution=TOL * [1, 1, 1, 10, 10])
     rest = final_rest_start(circle.q)

@@ -46,7 +46,7 @@ def test_plan_covers_every_sample_once_and_prefers_stops(back_and_forth):
 
 
 def test_overlap_from_the_slowest_pole(machine):
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     sigma = slowest_decay_rate(models)
     assert 6.0 < sigma < 6.2                              # the PID's slowest pole, -6.1 /s
     one, three = overlap_samples(models, 1e-3, 1), overlap_samples(models, 1e-3, 3)
@@ -57,7 +57,7 @@ def test_overlap_from_the_slowest_pole(machine):
 @pytest.mark.parametrize("controller", ["pid-high", "pid-low"])
 def test_predicting_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine, back_and_forth,
                                                                        controller):
-    models = machine.controller(controller).error_models(machine.drives)
+    models = machine.error_models(controller)
     traj = back_and_forth
     whole = predict_program(traj, models, machine.kinematics)
     # cut in motion (1,000-sample pieces, far from the stops) and at stops
@@ -90,7 +90,7 @@ def test_contour_errors_in_pieces_are_those_of_the_whole(machine, back_and_forth
 
 def test_compensating_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine,
                                                                          back_and_forth):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     traj = back_and_forth
     whole = compensate_program(traj, machine.kinematics, models, min_passes=1)
     cut = compensate_program(traj, machine.kinematics, models, min_passes=1,

@@ -23,7 +23,7 @@ def _reduction(before, after):
 
 def test_virtual_machine_without_friction_agrees_with_prediction(machine, paper):
     for name in ("pid-high", "pid-low"):
-        models = machine.controller(name).error_models(machine.drives)
+        models = machine.error_models(name)
         # fit 10x finer than the 1 um default: the fit residual passes almost unattenuated
         # through e(s)/X(s) at high frequency and would otherwise be ~1.5 % of max|e|
         predicted = predict_tracking(paper.t, paper.q, models, tol_linear=1e-4,
@@ -45,7 +45,7 @@ def test_compensation_in_the_linear_virtual_machine(machine, paper, controller):
     lag left in the rest); with the rest, one pass removes 95.35 / 98.75 % of the max / mean
     tip error and 99.32 / 99.54 % of the orientation's (before: 95.35 / 98.76, 99.32 /
     99.57)."""
-    models = machine.controller(controller).error_models(machine.drives)
+    models = machine.error_models(controller)
     paper = with_final_rest(paper, required_final_rest(models))
     reference = ReferencePath.from_trajectory(paper)
     measured = {}
@@ -65,7 +65,7 @@ def test_compensation_in_the_linear_virtual_machine(machine, paper, controller):
 
 
 def test_tracking_method_adds_the_predicted_errors(machine, paper):
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     result = compensate(paper, machine.kinematics, models, method="tracking")
     e = predict_tracking(paper.t, paper.q, models, tol_linear=1e-4, tol_rotary=1e-7)(paper.t)
     # the corrections taper to zero over the final rest: the commands end at the programmed
@@ -79,7 +79,7 @@ def test_tracking_method_adds_the_predicted_errors(machine, paper):
 def test_compensated_commands_stay_smooth(machine, paper):
     """Paper Fig. 16: velocity and acceleration of the commands nearly unchanged, and the
     correction a smooth function of time (no sample-to-sample steps)."""
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     result = compensate(paper, machine.kinematics, models, iterations=2)
     q_ref, q_comp = paper.q, result.trajectory.q
     assert np.all(np.isfinite(q_comp))
@@ -96,7 +96,7 @@ def test_compensated_commands_stay_smooth(machine, paper):
 
 
 def test_bad_arguments(machine, paper):
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     with pytest.raises(ValueError, match="unknown compensation method 'magic'"):
         compensate(paper, machine.kinematics, models, method="magic")
     with pytest.raises(ValueError, match="iterations must be >= 1"):

@@ -35,7 +35,7 @@ def test_segmented_learning_is_nowhere_worse_and_close_to_learning_the_whole(mac
     own), score 0.995 of the whole's; hence bounds of 1.05 on the score and 1.10 on the
     mean."""
     controller = "pid-high"
-    models = machine.controller(controller).error_models(machine.drives)
+    models = machine.error_models(controller)
     limits = AxisLimits.from_machine(machine)
     traj = generate_trajectory(builtin_path("paper"), machine, feed=35.0)
     limited = compensate_within_limits(traj, machine.kinematics, models, limits)

@@ -58,7 +58,7 @@ def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command
     """Never worse: on a (made-up) machine whose actual motion moves away from the reference
     by five times whatever the command changes, every compensated candidate is worse than the
     reference command, so the reference command is kept."""
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
 
     def punishing(q):
         return fan_like.q - 5.0 * (q - fan_like.q)
@@ -72,7 +72,7 @@ def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command
 
 
 def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     calls = []
 
     def actual(q):
@@ -117,7 +117,7 @@ def test_learning_removes_the_final_stop_error_on_the_fan_path(machine):
     machines removes >= 85 %. Over 10 draws (:func:`conftest.nanometre_draws`) it kept
     0.055-0.089 of the max (deciding on the realistic machine alone, 0.056-0.102), so the
     worst of :data:`conftest.FRICTION_DRAWS` is asserted <= 0.15."""
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     for path in nanometre_draws(builtin_path("fan")):
         traj = generate_trajectory(path, machine)
 
@@ -175,7 +175,7 @@ def _learned_and_reference_errors(traj, machine, monkeypatch=None, **learning_op
         def settings(**kwargs):
             return LearningSettings(**kwargs, **learning_options)
         monkeypatch.setattr(precompensate, "LearningSettings", settings)
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
 
     def actual(q):
         return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
@@ -236,7 +236,7 @@ def test_commands_refused_as_inadmissible_are_not_kept(machine, fan_like):
     def errors_of(q_act):
         return contour_errors(reference, q_act, machine.kinematics)
 
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     linear = compensate(fan_like, machine.kinematics, models).trajectory.q
     q, report = learn_at_stops(fan_like.q, linear, fan_like.ts, actual, errors_of,
                                precompensate.learning_step(fan_like, reference,

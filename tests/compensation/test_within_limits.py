@@ -34,7 +34,7 @@ def _peaks(q, ts):
 
 
 def test_slows_down_where_compensation_breaks_a_limit(machine, circle):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     line = np.arange(circle.n_samples) // 10 + 1
     result = compensate_within_limits(circle, machine.kinematics, models, limits, line=line)
@@ -57,7 +57,7 @@ def test_slows_down_where_compensation_breaks_a_limit(machine, circle):
 
 
 def test_within_limits_is_left_alone(machine, circle):
-    models = machine.controller("pid-low").error_models(machine.drives)
+    models = machine.error_models("pid-low")
     result = compensate_within_limits(circle, machine.kinematics, models,
                                       AxisLimits.from_machine(machine))
     assert result.rounds == 1 and result.slowdowns == ()
@@ -65,7 +65,7 @@ def test_within_limits_is_left_alone(machine, circle):
 
 
 def test_impossible_limits_are_errors(machine, circle):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     travel = dataclasses.replace(limits, position_max=np.full(5, 10.0))
     with pytest.raises(MachineLimitError, match="travel"):
@@ -77,7 +77,7 @@ def test_impossible_limits_are_errors(machine, circle):
 
 
 def test_windows_slowing_cannot_cure_fall_back_to_the_planned_commands(machine, circle):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     first = compensate_within_limits(circle, machine.kinematics, models, limits)
     assert first.rounds >= 2 and not first.uncompensated   # slowing alone keeps the limits
@@ -99,7 +99,7 @@ def test_no_window_is_slowed_below_the_floor(machine, path, floor, left_out):
     finite differences). Where the floor stopped the slowing (circle at 0.9 needed none: its
     retiming margin covered it), the planned commands are kept."""
     traj = generate_trajectory(builtin_path(path), machine)
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     free = compensate_within_limits(traj, machine.kinematics, models, limits, min_speed=0.5)
     assert min(s.speed for s in free.slowdowns) < floor - 0.05
@@ -120,7 +120,7 @@ def test_no_window_is_slowed_below_the_floor(machine, path, floor, left_out):
 
 
 def test_a_floor_of_one_never_slows_and_keeps_the_limits(machine, circle):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     result = compensate_within_limits(circle, machine.kinematics, models, limits, min_speed=1.0)
     assert result.slowdowns == () and result.reference.n_samples == circle.n_samples
@@ -130,7 +130,7 @@ def test_a_floor_of_one_never_slows_and_keeps_the_limits(machine, circle):
 
 
 def test_splicing_matches_compensating_everything_again(machine, circle):
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     spliced = compensate_within_limits(circle, machine.kinematics, models, limits, splice=True)
     full = compensate_within_limits(circle, machine.kinematics, models, limits, splice=False)
@@ -200,7 +200,7 @@ def test_rough_corrections_are_smoothed_instead_of_slowed(machine, monkeypatch):
     from precontour.compensation.blocks import ORIENTATION_MARGIN, TIP_MARGIN, margin_bound
 
     traj = generate_trajectory(_spiral(6000), machine)
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     limited = compensate_within_limits(traj, machine.kinematics, models, limits)
     assert not limited.first_check.ok and limited.check.ok and limited.smoothed
@@ -240,7 +240,7 @@ def test_a_blend_that_would_leave_the_path_is_slowed_instead(machine, circle):
     """On ``circle`` with pid-high the jerk limit breaks near the end, where the blend into
     tracking-error pre-compensation would leave 2.96 um against the compensated commands'
     0.11 um (predicted): that window is slowed down, not smoothed."""
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     result = compensate_within_limits(circle, machine.kinematics, models, limits)
     assert not result.first_check.ok and not result.smoothed and result.slowdowns
@@ -269,7 +269,7 @@ def test_kinks_are_smoothed_instead_of_slowed(tmp_path, monkeypatch):
     program = tmp_path / "corner.ngc"
     program.write_text(CORNER_PROGRAM)
     traj, _ = load_program_trajectory(program, machine)
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     smoothed = compensate_within_limits(traj, machine.kinematics, models, limits)
     # the first compensation's corner jumps ask for far more stretch than dynamics would
@@ -356,7 +356,7 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
     motion differ from run to run there), so the worst of the five is bounded above it, by
     0.6, and their median by 0.2. Unsmoothed learning (``compensate``) breaks the jerk
     limit."""
-    models = machine.controller("pid-high").error_models(machine.drives)
+    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     ensemble = MachineEnsemble()
     ratios = []

@@ -27,7 +27,7 @@ def test_axes_that_never_move_keep_the_base_model(machine, x_only_result):
         assert "never moves" in note and "kept the base model (pid-high)" in note
         assert "\n" not in note
     ident = result.identified_models()
-    base = machine.controller("pid-high").error_models(machine.drives)
+    base = machine.error_models("pid-high")
     w = np.geomspace(1, 3000, 30) * 1j
     for i in range(1, 5):
         h_ident = np.polyval(ident[i].num, w) / np.polyval(ident[i].den, w)

@@ -76,7 +76,7 @@ def test_continuous_model_predicts_the_discrete_machine_on_a_new_path(machine):
     traj = generate_trajectory(builtin_path("paper"), machine)
     truth = simulate(traj.t, traj.q, machine, "pid-high", mode="discrete", friction=False,
                      ff_friction=False).e[:, 0]
-    nominal = machine.controller("pid-high").error_models(machine.drives)
+    nominal = machine.error_models("pid-high")
     models = (_error_model(fit),) + nominal[1:]
     e_ident = predict_tracking(traj.t, traj.q, models)(traj.t)[:, 0]
     e_cont = predict_tracking(traj.t, traj.q, nominal)(traj.t)[:, 0]
@@ -96,7 +96,7 @@ def test_quantized_and_noisy_encoder(machine, noise):
     traj = generate_trajectory(builtin_path("paper"), machine)
     truth = simulate(traj.t, traj.q, machine, "pid-high", mode="discrete", friction=False,
                      ff_friction=False).e[:, 0]
-    models = (_error_model(fit),) + machine.controller("pid-high").error_models(machine.drives)[1:]
+    models = (_error_model(fit),) + machine.error_models("pid-high")[1:]
     e_ident = predict_tracking(traj.t, traj.q, models)(traj.t)[:, 0]
     assert 100 * np.abs(e_ident - truth).max() / np.abs(truth).max() < 3.0
     assert np.all(np.roots(fit.den).real < 0)
@@ -112,7 +112,7 @@ def test_hidden_plant_with_friction_beats_the_nominal_model(machine):
     fit = identify_axis("X", log.command["X"], log.actual["X"], log.period)
     traj = generate_trajectory(builtin_path("paper"), machine)
     truth = simulate(traj.t, traj.q, plant, "pid-high", mode="discrete").e[:, 0]
-    nominal = machine.controller("pid-high").error_models(machine.drives)
+    nominal = machine.error_models("pid-high")
     e_ident = predict_tracking(traj.t, traj.q, (_error_model(fit),) + nominal[1:])(traj.t)[:, 0]
     e_nom = predict_tracking(traj.t, traj.q, nominal)(traj.t)[:, 0]
     peak = np.abs(truth).max()

@@ -15,8 +15,8 @@ def test_builtin_values_and_poles(machine):
     assert x.friction.Ts_neg == -2.0692
     assert set(machine.controllers) == {"pid-high", "pid-low", "p-pi-high", "p-pi-low", "smc"}
     # spec section 2: closed-loop poles of X
-    high = np.sort(machine.controller("pid-high").error_models(machine.drives)[0].poles.real)
-    low = np.sort(machine.controller("pid-low").error_models(machine.drives)[0].poles.real)
+    high = np.sort(machine.error_models("pid-high")[0].poles.real)
+    low = np.sort(machine.error_models("pid-low")[0].poles.real)
     np.testing.assert_allclose(high, [-187.6, -58.8, -42.0], atol=0.05)
     np.testing.assert_allclose(low, [-178.3, -32.7, -6.1], atol=0.05)
 
@@ -25,7 +25,7 @@ def test_bandwidths_match_paper(machine):
     from scipy import signal
     # measured: 53.4-55.9 Hz and 35.9-38.6 Hz (rotary axes lowest); paper: 55.8 and 38.6 Hz
     for name, lo, hi in (("pid-high", 53.2, 56.2), ("pid-low", 35.7, 38.9)):
-        for model, drive in zip(machine.controller(name).error_models(machine.drives),
+        for model, drive in zip(machine.error_models(name),
                                 machine.drives):
             # x/X = 1 - e/X
             num = np.polysub(model.den, model.num)
@@ -159,7 +159,7 @@ def test_unstable_controller_is_rejected(tmp_path):
     path.write_text(text)
     m = load_machine(path)
     with pytest.raises(UnsupportedControllerError, match=r"axis X: closed loop is not stable"):
-        m.controller("pid-high").error_models(m.drives)
+        m.error_models("pid-high")
 
 
 @pytest.mark.parametrize("name, kin_type, axis_names", [
@@ -187,8 +187,8 @@ def test_linuxcnc_builtin_machines(name, kin_type, axis_names):
         assert (ours.ka, ours.kt, ours.rg, ours.J, ours.B, ours.friction) == \
             (theirs.ka, theirs.kt, theirs.rg, theirs.J, theirs.B, theirs.friction)
     assert set(machine.controllers) == set(zhang.controllers)
-    for model, reference in zip(machine.controller("pid-high").error_models(machine.drives),
-                                zhang.controller("pid-high").error_models(zhang.drives)):
+    for model, reference in zip(machine.error_models("pid-high"),
+                                zhang.error_models("pid-high")):
         np.testing.assert_array_equal(model.den, reference.den)
 
 
@@ -285,7 +285,7 @@ def _tf_machine(num, den):
 
 def test_tf_controller_error_model_is_one_minus_the_loop():
     machine = _tf_machine("[300.0, 20000.0]", "[1.0, 300.0, 20000.0]")
-    model = machine.controller("fit").error_models(machine.drives)[0]
+    model = machine.error_models("fit")[0]
     np.testing.assert_allclose(model.num, [1.0, 0.0, 0.0])
     np.testing.assert_allclose(model.den, [1.0, 300.0, 20000.0])
 

@@ -134,7 +134,7 @@ def test_long_segments_do_not_overflow(machine):
     fit2 = fit_min_jerk(t[1001:], x[1001:], 1e-4)
     c = np.concatenate([fit1.spline.c, np.array([[0, 0, 0, 0, 0, 50.0]]).T, fit2.spline.c], axis=1)
     spline = PPoly(c, np.concatenate([fit1.spline.x, fit2.spline.x]))
-    model = machine.controller("pid-low").error_models(machine.drives)[0]
+    model = machine.error_models("pid-low")[0]
     err = tracking_error(spline, model)
     e = err(t)
     assert np.all(np.isfinite(e))
@@ -146,7 +146,7 @@ def test_long_segments_do_not_overflow(machine):
 def test_error_before_start_and_after_end(machine):
     x = analytic_axis(T, DURATION, 5.0, 20.0, 1.0, 2.0)[0]
     fit = fit_min_jerk(T, x, 1e-3)
-    err = tracking_error(fit.spline, machine.controller("pid-low").error_models(machine.drives)[0])
+    err = tracking_error(fit.spline, machine.error_models("pid-low")[0])
     assert err(-1.0) == 0.0
     late = err(np.array([DURATION + 0.5, DURATION + 5.0]))
     assert abs(late[1]) < 1e-6 * np.abs(err(T)).max()    # slowest pole -6.1 rad/s

@@ -246,7 +246,7 @@ def test_tracking_baseline_adds_the_predicted_tracking_errors(cli_run, machine):
     result, _, _ = cli_run
     traj = result.trajectory
     for name in ("p-pi-high", "pid-low"):
-        models = machine.controller(name).error_models(machine.drives)
+        models = machine.error_models(name)
         e = predict_tracking(traj.t, traj.q, models, tol_linear=COMPENSATION_TOL_LINEAR,
                              tol_rotary=COMPENSATION_TOL_ROTARY)(traj.t)
         # its corrections tapered to zero over the final rest, ending at the programmed end
@@ -261,7 +261,7 @@ def test_min_passes_keeps_a_pass_that_does_not_improve(cli_run, machine):
     # compensate() alone would keep the uncompensated commands; min_passes=1 keeps the pass.
     result, _, _ = cli_run
     traj = result.trajectory
-    models = machine.controller("p-pi-high").error_models(machine.drives)
+    models = machine.error_models("p-pi-high")
     default = compensate(traj, machine.kinematics, models, method="tracking")
     assert default.iterations == 0
     np.testing.assert_array_equal(default.trajectory.q, traj.q)

@@ -160,7 +160,7 @@ def test_closed_loop_bandwidth_matches_the_paper():
 
     machine = load_machine("zhang2013")
     for name, paper_hz in (("pid-high", 55.8), ("pid-low", 38.6)):
-        model = machine.controller(name).error_models(machine.drives)[0]
+        model = machine.error_models(name)[0]
         hz = closed_loop_bandwidth(model)
         assert hz == pytest.approx(paper_hz, abs=0.5)
         # independent check of the -3 dB definition with scipy.signal.freqresp

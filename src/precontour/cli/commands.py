@@ -39,7 +39,7 @@ def run_predict(args: argparse.Namespace) -> int:
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
     machine = load_machine(args.machine)
-    models = machine.controller(args.controller).error_models(machine.drives)
+    models = machine.error_models(args.controller)
     # commands (e.g. pre-compensated ones) are measured against their own reference columns
     traj = read_trajectory(args.trajectory, kinematics=machine.kinematics,
                            tolerance=COMMAND_TOLERANCE)

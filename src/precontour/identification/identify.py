@@ -57,7 +57,7 @@ class IdentificationResult:
         return self.axis_names[AXES.index(axis)]
 
     def identified_models(self) -> tuple[LinearErrorModel, ...]:
-        return self.machine.controller(self.name).error_models(self.machine.drives)
+        return self.machine.error_models(self.name)
 
     def summary_rows(self) -> list[dict]:
         """Per axis: order, fit %, held-out %, bandwidths (Hz), poles (rad/s); ``axis`` is the
@@ -116,7 +116,7 @@ def identify(log: ServoLog, base: Machine, base_data: dict, *, name: str = "iden
         raise InputError(f"controller name must be letters, digits, '-' or '_', got {name!r}",
                          field="name")
     ctrl = default_base_controller(base) if base_controller is None else base.controller(base_controller)
-    base_models = ctrl.error_models(base.drives)
+    base_models = base.error_models(ctrl)
     ts = log.period
     if not base.at_servo_period(ts):
         # Not an error: the model is continuous; say it in the notes.

@@ -65,6 +65,14 @@ class Machine:
                 f"unknown controller {name!r}; this machine has {', '.join(self.controllers)}",
                 source=self.source) from None
 
+    def error_models(self, controller: str | Controller):
+        """The closed-loop error models e/X of the five axes (spec section 3) with
+        ``controller`` (a name of this machine's controllers, or a controller) closing the
+        loops of this machine's drives: what prediction and compensation take."""
+        if isinstance(controller, str):
+            controller = self.controller(controller)
+        return controller.error_models(self.drives)
+
     def at_servo_period(self, ts: float) -> bool:
         """Whether samples every ``ts`` s are one per servo period, within
         :data:`SERVO_PERIOD_RTOL` (sample periods read back from text time stamps differ from

@@ -420,7 +420,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     if limits is None:
         limits = AxisLimits.from_machine(machine)
     if compensate and models is None:
-        models = machine.controller(controller).error_models(machine.drives)
+        models = machine.error_models(controller)
     planned_line = line
     current, current_line = planned, line
     index = np.arange(planned.n_samples, dtype=float)       # current sample -> planned sample
@@ -609,7 +609,7 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     programmed = planned if programmed is None else programmed
     # both plans with the final rest the compensated commands need to end at the programmed
     # end point (:mod:`~..compensation.programmed_end`; ``run`` plans it already)
-    rest = required_final_rest(machine.controller(controller).error_models(machine.drives)
+    rest = required_final_rest(machine.error_models(controller)
                                if models is None else models)
     n = planned.n_samples
     planned, programmed = with_final_rest(planned, rest), with_final_rest(programmed, rest)

@@ -311,7 +311,7 @@ def predict_tracking(t: np.ndarray, q: np.ndarray, models: tuple[LinearErrorMode
     q : ndarray, shape (N, 5)
         Axis commands X, Y, Z (mm), A, C (rad).
     models : tuple of 5 LinearErrorModel
-        Closed-loop error models, e.g. ``machine.controller(name).error_models(machine.drives)``.
+        Closed-loop error models, e.g. ``machine.error_models(name)``.
     tol_linear, tol_rotary : float, optional
         Fit tolerances (defaults 1 um, 1 urad).
     initial_knots : tuple of 5 int arrays, optional

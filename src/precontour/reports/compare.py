@@ -594,7 +594,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
         # the final rest the slowest compensated loop needs to end at the programmed end point
         # (every command judged on the same plan)
         traj = with_final_rest(traj, max(required_final_rest(
-            controllers[name].error_models(machine.drives)) for name in linear))
+            machine.error_models(controllers[name])) for name in linear))
     total = (1 if sliding else 0) + 5 * len(linear) + 3 * len(model_errors)
     step = StepCounter(progress, total)
 
@@ -617,7 +617,7 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     if sliding:
         runs[(sliding, "none")] = measure(sliding, "none", traj)
     for name in linear:
-        models = controllers[name].error_models(machine.drives)
+        models = machine.error_models(controllers[name])
         runs[(name, "none")] = measure(name, "none", traj)
         comps = {}
         for kind, passes in (("tracking", 1), ("contour", iterations)):

@@ -170,7 +170,7 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     machine_file = machine
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
-    models = {name: machine.controller(name).error_models(machine.drives)
+    models = {name: machine.error_models(name)
               for name in controllers}
     out_dir = check_report_folder(
         out_dir, demo_file_names(paths, controllers).values(),

@@ -145,7 +145,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
     machine_obj = load_machine(machine)
-    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    models = machine_obj.error_models(controller)
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
                               max_samples=max_samples, format=format,
                               tool_table=tool_table)
@@ -376,7 +376,7 @@ def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller
     summary)`` the first round's passes, ``learning_progress(label, summary)`` each command
     learning tries."""
     learning = learning_options(learn)
-    models = machine_obj.controller(controller).error_models(machine_obj.drives)
+    models = machine_obj.error_models(controller)
     axis_limits = AxisLimits.from_machine(machine_obj)
     # a final rest long enough for the corrections to taper to zero, so that the commands end
     # at the programmed end point (the controller holds the last command after them anyway)
