@@ -366,25 +366,25 @@ def _counted(errors: ContourErrors, line, exempt_lines) -> ContourErrors:
                    orientation=np.where(out, 0.0, errors.orientation))
 
 
-def _keep_limits(traj: Trajectory, line, index: np.ndarray, limits: AxisLimits):
+def _keep_limits(traj: Trajectory, index: np.ndarray, limits: AxisLimits):
     """The uncompensated reference slowed further where the retiming's ramps broke a limit
     (a few rounds of :func:`~precontour.trajectory.retime.retime` by the check's stretch)."""
     for _ in range(LIMIT_ROUNDS):
         check = check_limits(traj.q, traj.ts, limits, t0=float(traj.t[0]))
         if check.ok:
-            return traj, line, index
+            return traj, index
         if not check.position_ok:
             raise MachineLimitError("the retimed commands leave an axis's travel: "
                                     + check.format())
         stretch = np.where(check.stretch > 1.0 + CHECK_RTOL, check.stretch / RETIME_MARGIN, 1.0)
-        retimed = retime(traj, stretch, line=line)
+        retimed = retime(traj, stretch)
         index = np.interp(retimed.old_index, np.arange(traj.n_samples), index)
-        traj, line = retimed.trajectory, retimed.line
+        traj = retimed.trajectory
     check = check_limits(traj.q, traj.ts, limits, t0=float(traj.t[0]))
     if not check.ok:
         raise MachineLimitError("the retimed uncompensated commands still exceed the "
                                 f"machine's limits: {check.format()}")
-    return traj, line, index
+    return traj, index
 
 
 def search_feed(planned: Trajectory, machine, controller: str, tolerance: ContourTolerance, *,
@@ -421,11 +421,14 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
         limits = AxisLimits.from_machine(machine)
     if compensate and models is None:
         models = machine.error_models(controller)
-    planned_line = line
-    current, current_line = planned, line
+    if line is not None:
+        # the lines given travel with the trajectory (and through its re-timings)
+        planned = replace(planned, line=np.asarray(line))
+    planned_line = planned.line
+    current = planned
     index = np.arange(planned.n_samples, dtype=float)       # current sample -> planned sample
     if not compensate:
-        current, current_line, index = _keep_limits(current, current_line, index, limits)
+        current, index = _keep_limits(current, index, limits)
     on_ensemble = False
     machine_runs = 0
     limited = None
@@ -439,10 +442,10 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
                 progress(f"compensated, round {round_}: compensate "
                          f"({current.n_samples} samples)")
             limited = compensate_within_limits(current, machine.kinematics, models, limits,
-                                               line=current_line, min_speed=limits_min_speed,
+                                               min_speed=limits_min_speed,
                                                iterations=iterations)
             index = np.interp(limited.planned_index, np.arange(current.n_samples), index)
-            current, current_line = limited.reference, limited.line
+            current = limited.reference
             if refine is not None:
                 if progress is not None:
                     progress(f"compensated, round {round_}: learn")
@@ -455,7 +458,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             progress(f"{label}, round {round_}: virtual machine"
                      + (f", {ensemble.draws} draws" if on_ensemble else ""))
         errors = _counted(_measure(current, q, machine, controller,
-                                   ensemble if on_ensemble else None), current_line,
+                                   ensemble if on_ensemble else None), current.line,
                           exempt_lines)
         machine_runs += ensemble.draws if on_ensemble else 1
         ratio = tolerance.ratios(errors)
@@ -467,16 +470,16 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             if progress is not None:
                 progress(f"{label}, round {round_}: check on {ensemble.draws} draws")
             errors = _counted(_measure(current, q, machine, controller, ensemble),
-                              current_line, exempt_lines)
+                              current.line, exempt_lines)
             machine_runs += ensemble.draws
             ratio = tolerance.ratios(errors)
             over = ratio > 1.0
         speed = _speed(index)
         room = _FLOOR_MARGIN * speed / min_speed
         moves = moving(current)
-        if current_line is not None and over.any():
-            futile_lines |= _futile_lines(current_line, ratio, speed, moves, last_over)
-        futile = (np.isin(current_line, np.fromiter(futile_lines, dtype=np.int64))
+        if current.line is not None and over.any():
+            futile_lines |= _futile_lines(current.line, ratio, speed, moves, last_over)
+        futile = (np.isin(current.line, np.fromiter(futile_lines, dtype=np.int64))
                   if futile_lines else np.zeros(current.n_samples, dtype=bool))
         if not over.any() or round_ == max_rounds:
             break
@@ -497,16 +500,16 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             break               # no sample over the tolerance can be slowed any more
         stretch = np.minimum(gentle(stretch, current.ts), np.maximum(room, 1.0))
         stretch[~slowable] = 1.0
-        retimed = retime(current, stretch, line=current_line)
+        retimed = retime(current, stretch)
         index = np.interp(retimed.old_index, np.arange(current.n_samples), index)
-        current, current_line = retimed.trajectory, retimed.line
+        current = retimed.trajectory
         if not compensate:
-            current, current_line, index = _keep_limits(current, current_line, index, limits)
+            current, index = _keep_limits(current, index, limits)
     commands = limited.result.trajectory if compensate else current
-    misses = _misses(current, errors, tolerance, current_line, speed, room, where,
+    misses = _misses(current, errors, tolerance, current.line, speed, room, where,
                      moves, futile)
     return FeedSearch(compensated=compensate, reference=current, commands=commands,
-                      line=current_line, planned_index=index, errors=errors,
+                      line=current.line, planned_index=index, errors=errors,
                       draws=ensemble.draws if on_ensemble else 1, rounds=round_,
                       machine_runs=machine_runs, misses=misses, limited=limited,
                       planned_line=planned_line)
