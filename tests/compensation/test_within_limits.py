@@ -443,10 +443,11 @@ def test_resting_axis_held_where_its_correction_slips(machine, tmp_path):
     rows worse than uncompensated beyond the block margins. Learning also learns the variant
     with X held at its reference (``hold_resting_axes``). Measured on 5 nanometre draws of the
     CL points (3 here): each kept a held command, nowhere worse within the block margins
-    alone (checked independently, draw by draw and row by row; with the newest versions every
-    draw kept "pass 3, resting axes held, then draw 3's update (step 0.25)"), its worst
-    draw's max 0.82 % and mean 4.58 % of the uncompensated on every input draw, hence the
-    bounds 0.03 and 0.06. (Before the worst draw's own update, the held commands were worse
+    alone (checked independently, draw by draw and row by row; with the newest and the oldest
+    allowed versions every draw kept "pass 3, resting axes held, then draw 3's update (step
+    0.25)"), its worst draw's max 0.82 % and mean 5.03 % of the uncompensated on every input
+    draw (4.58 % before the commands ended at the programmed end point), hence the bounds
+    0.03 and 0.06. (Before the worst draw's own update, the held commands were worse
     at the start in orientation, and a fallback's taper left 5.9 % of both.)"""
     ensemble = MachineEnsemble()
     for draw, result in _circle_pid_low_learned(tmp_path, draws=3):
