@@ -227,8 +227,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             timings["learn"] = time.perf_counter() - start
 
     simulated, checked = _check_run(limited, machine, machine_obj, controller, draws,
-                                    replace(learning_ensemble, draws=max(draws, 1)),
-                                    workers=workers, step=step, timings=timings)
+                                    learning_ensemble, workers=workers, step=step,
+                                    timings=timings)
 
     step(3, "write G-code")
     start = time.perf_counter()
@@ -259,7 +259,7 @@ def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: M
                controller: str, draws: int, ensemble: MachineEnsemble, *, workers, step,
                timings: dict[str, float]):
     """``run``'s check of both commands on the realistic virtual machine: the machine file's
-    machine (:func:`check_on_virtual_machine`), then with ``draws`` > 1 the draws of
+    machine (:func:`check_on_virtual_machine`), then with ``draws`` > 1 that many draws of
     ``ensemble`` (:func:`check_on_draws`), a warning where the compensated commands are
     worse in whole. The two results (uncompensated, compensated) and the draws' check (None
     for one draw); ``step(done, message)`` reports, ``timings`` gets the seconds."""
@@ -271,6 +271,7 @@ def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: M
     timings["virtual machine (both)"] = time.perf_counter() - start
     if draws <= 1:
         return simulated, None
+    ensemble = replace(ensemble, draws=draws)
     step(2, f"virtual machine, {draws - 1} more draw(s) of the machine, uncompensated "
             + ("(twice: its repeatability) " if ensemble.rerun_differs else "")
             + "and compensated")
