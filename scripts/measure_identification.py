@@ -42,7 +42,7 @@ import numpy as np
 from docpage import markdown_table, replace_section, stamp
 
 from precontour import builtin_path, generate_trajectory, load_machine
-from precontour.compensation import compensate
+from precontour.compensation.precompensate import compensate
 from precontour.prediction import ReferencePath, contour_errors
 from precontour.simulation import simulate
 from precontour.compensation.stops import DEFAULT_LEARNING_PASSES

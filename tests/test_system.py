@@ -123,3 +123,47 @@ def test_results_plot_themselves(servo, paper):
     simulated = contour_errors(servo, paper, simulate(servo, comp))
     np.testing.assert_array_equal(fig.axes[1].get_lines()[1].get_ydata(),
                                   1e3 * simulated.orientation)
+
+
+def test_compensation_has_one_entry_and_the_system_is_the_machines():
+    """One public compensation function, the servo first, which the top level and
+    precontour.system give too; the servo is the machine stage's; learning's former entry and
+    run's former helpers still answer, with a DeprecationWarning naming the release that
+    removes them."""
+    import precontour.compensation as compensation
+    import precontour.workflow as workflow
+    from precontour.compensation.stops import learn_at_stops
+    from precontour.machine import servo as machine_servo
+
+    functions = [name for name in compensation.__all__
+                 if callable(getattr(compensation, name))
+                 and not isinstance(getattr(compensation, name), type)]
+    assert functions == ["compensate"]
+    assert precontour.compensate is compensation.compensate is precontour.system.compensate
+    assert precontour.Servo is machine_servo.Servo
+    assert precontour.load_servo is machine_servo.load_servo
+    with pytest.warns(DeprecationWarning, match="removed in precontour"):
+        assert compensation.learn_at_stops is learn_at_stops
+    for former in ("compensate_keeping_limits", "learn_on_ensemble"):
+        with pytest.warns(DeprecationWarning, match="servo first"):
+            assert callable(getattr(workflow, former))
+    with pytest.raises(AttributeError):
+        compensation.learn_within_limits
+
+
+def test_the_former_calls_give_what_the_servo_first_ones_give(servo, paper):
+    """``workflow.compensate_keeping_limits(traj, machine, controller)`` (former) is the
+    limits route of ``compensate(servo, traj)``; the former stage call
+    ``compensation.compensate(traj, kinematics, ...)`` is refused in one line that
+    names where it went."""
+    import precontour.compensation as compensation
+    import precontour.workflow as workflow
+
+    with pytest.warns(DeprecationWarning):
+        keeping = workflow.compensate_keeping_limits
+    limited = keeping(paper, servo.machine, servo.controller)
+    np.testing.assert_array_equal(limited.result.trajectory.q,
+                                  compensate(servo, paper).commands.q)
+    with pytest.raises(InputError, match="servo first.*precompensate.compensate") as error:
+        compensation.compensate(paper, servo.kinematics)
+    assert "\n" not in str(error.value)

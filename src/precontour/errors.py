@@ -2,13 +2,19 @@
 
 Every error a user can cause derives from :class:`PrecontourError`, and each is also the
 matching builtin (``ValueError``), so callers may catch either. Messages are one line and name
-the file, the row and the field where the problem is.
+the file, the row and the field where the problem is. Options given in a former spelling are
+accepted with a DeprecationWarning naming the release that removes them
+(:func:`with_former_spellings`).
 """
 
 from __future__ import annotations
 
 import logging
 import numbers
+import warnings
+from dataclasses import replace
+
+from .defaults import FORMER_SPELLINGS_REMOVED_IN
 
 #: Where one-line notices go (a normalization, an unwrap): the command line prints them as
 #: ``precontour: note: ...``; a library user gets them through :mod:`logging`.
@@ -145,3 +151,24 @@ class MachineLimitError(PrecontourError, ValueError):
 class ToleranceError(PrecontourError, ValueError):
     """A contour-error tolerance cannot be met, even at the slowest motion allowed: the
     message names where (source line, time) and by how much."""
+
+
+def with_former_spellings(value, kind: type, make, name: str, **former):
+    """``value`` as options of ``kind`` (itself, or ``make(value)`` of a plain value) with the
+    fields given in their former spellings (``former``: field -> value, None where not given),
+    each with a DeprecationWarning naming the release that removes it (pointed at the caller
+    of the function that takes them). Beside an options object they are refused: the object
+    holds them."""
+    given = {key: v for key, v in former.items() if v is not None}
+    if isinstance(value, kind):
+        if given:
+            raise InputError(f"give {', '.join(given)} in {name} ({kind.__name__}), not "
+                             "beside it", field=next(iter(given)))
+        return value
+    if given:
+        fields = ", ".join(f"{key}=..." for key in given)
+        warnings.warn(f"{', '.join(f'{key}=' for key in given)}: former spelling, removed in "
+                      f"precontour {FORMER_SPELLINGS_REMOVED_IN}; give {name}="
+                      f"{kind.__name__}({fields})", DeprecationWarning, stacklevel=3)
+    options = make(value)
+    return replace(options, **given) if given else options

@@ -19,7 +19,9 @@ from conftest import nanometre_draws
 from precontour.machine import load_machine
 from precontour.trajectory import builtin_path
 from precontour.trajectory.generate import generate_trajectory
-from precontour.workflow import check_on_virtual_machine, compensate_keeping_limits
+from precontour.compensation.routes import keep_limits
+from precontour.machine.servo import load_servo
+from precontour.workflow import check_on_virtual_machine
 
 
 @pytest.mark.parametrize("machine_name", ["head-table-bc", "linuxcnc-bridgemill", "head-table-ac",
@@ -29,7 +31,7 @@ def test_paper_path_compensated_on_the_head_families(machine_name):
     reductions = []
     for path in nanometre_draws(builtin_path("paper")):
         planned = generate_trajectory(path, machine)
-        limited = compensate_keeping_limits(planned, machine, "pid-high")
+        limited = keep_limits(load_servo(machine, "pid-high"), planned)
         reference = limited.reference
         before, after = check_on_virtual_machine(reference, limited.result.trajectory.q,
                                                  machine_name, "pid-high")

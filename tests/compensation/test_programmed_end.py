@@ -7,7 +7,7 @@ read back by an independent parser."""
 import numpy as np
 import pytest
 
-from precontour.compensation import compensate as compensate_alone
+from precontour.compensation.precompensate import compensate as compensate_alone
 from precontour.compensation.blend import c2_step
 from precontour.compensation.programmed_end import (END_HOLD, END_REST_TIME_CONSTANTS,
                                                     END_TAPER, end_at_programmed_end,

@@ -77,17 +77,18 @@ def test_segmented_learning_is_nowhere_worse_and_close_to_learning_the_whole(mac
 def test_short_programs_learn_whole(machine, monkeypatch):
     """At most AT_ONCE_SAMPLES samples, ``run``'s learning is the whole-program learning
     itself (the commands of before): learn_by_segments is not called."""
-    from precontour.workflow import run as workflow   # where run looks them up
+    from precontour.compensation import routes   # where run's learning looks them up
+    from precontour.machine.servo import load_servo
 
     called = []
-    monkeypatch.setattr(workflow, "learn_by_segments",
+    monkeypatch.setattr(routes, "learn_by_segments",
                         lambda *a, **k: called.append(1) or pytest.fail("segmented"))
-    monkeypatch.setattr(workflow, "learn_within_limits", lambda limited, *a, **k: limited)
+    monkeypatch.setattr(routes, "learn_within_limits", lambda limited, *a, **k: limited)
     traj = generate_trajectory(builtin_path("paper"), machine)
     limited = compensate_within_limits(traj, machine.kinematics,
                                        machine.controller("pid-high").error_models(
                                            machine.drives), AxisLimits.from_machine(machine))
-    assert workflow.learn_on_ensemble(limited, machine, "pid-high", None, None, 4) is limited
+    assert routes.learn_on_ensemble(load_servo(machine, "pid-high"), limited, 4) is limited
     assert not called
 
 
@@ -95,16 +96,18 @@ def test_can_learn_takes_long_programs_within_the_limits(machine, caplog):
     """``can_learn`` no longer refuses a trajectory above AT_ONCE_SAMPLES (learned segment by
     segment); learning that runs it whole (``whole=True``, the unconstrained compensation)
     still does, with its notice. A trajectory off the servo period is refused either way."""
-    from precontour.workflow import can_learn
+    from precontour.compensation.routes import can_learn
+    from precontour.machine.servo import load_servo
 
+    servo = load_servo(machine, "pid-high")
     n = AT_ONCE_SAMPLES + 1
     t = np.arange(n) * machine.servo_period
     long = Trajectory(t=t, q=np.zeros((n, 5)))
-    assert can_learn(long, machine)
+    assert can_learn(servo, long)
     assert caplog.text == ""
-    assert not can_learn(long, machine, whole=True)
+    assert not can_learn(servo, long, whole=True)
     assert "compensated in pieces" in caplog.text
     caplog.clear()
     off = Trajectory(t=np.arange(10) * 2 * machine.servo_period, q=np.zeros((10, 5)))
-    assert not can_learn(off, machine)
+    assert not can_learn(servo, off)
     assert "servo period" in caplog.text

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..defaults import DEFAULT_FEED
 from ..machine.drives import AXES
+from ..machine.limits import axis_limits
 from ..errors import PrecontourError, ToolPathError, plain
 from ..kernels import jit, run_chunks
 
@@ -94,14 +95,6 @@ class _Limits:
     v: np.ndarray  # (5,) axis limits, inf where none
     a: np.ndarray
     j: np.ndarray
-
-
-def axis_limits(machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Velocity, acceleration and jerk limits of the five drives, shape (5,) each (mm or rad
-    per s, s^2, s^3); ``inf`` where the machine file gives none."""
-    get = lambda name: np.array([np.inf if getattr(d, name) is None else getattr(d, name)  # noqa: E731
-                                 for d in machine.drives], dtype=float)
-    return get("v_max"), get("a_max"), get("j_max")
 
 
 def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,

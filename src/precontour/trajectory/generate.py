@@ -17,8 +17,8 @@ import numpy as np
 from ..defaults import DEFAULT_DWELL, default_max_samples
 from ..errors import InputError, ToolPathError, plain
 from ..machine.drives import AXES
-from .feedplan import (DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, axis_limits,
-                       plan_feed)
+from ..machine.limits import axis_limits
+from .feedplan import DEFAULT_ACCELERATION, DEFAULT_FEED, DEFAULT_JERK, plan_feed
 from .pathspline import L_EQ, checked_points, corner_points, fit_path
 from .sampled import Trajectory
 

@@ -1,9 +1,7 @@
-"""The machine's axis limits, and whether sampled axis commands keep them.
+"""Whether sampled axis commands keep the machine's axis limits.
 
-:class:`AxisLimits` gathers what a machine file gives: each drive's travel
-(``p_min``/``p_max``, and the kinematics' tilt travel ``tilt_limits``; a tilt axis never
-travels beyond +-180 deg, :data:`TILT_TRAVEL`, as the G-code reader holds too), velocity,
-acceleration and jerk limits (``v_max``, ``a_max``, ``j_max``); ``inf`` where none is given.
+The limits themselves (:class:`~precontour.machine.limits.AxisLimits`, re-exported here) are
+the machine file's: travel, velocity, acceleration and jerk.
 :func:`check_travel` names the first row of commands outside a travel.
 :func:`check_limits` measures commands with finite differences at the sampling period (first,
 second and third differences, as :func:`~precontour.trajectory.generate.summarize` does) and
@@ -20,42 +18,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine.drives import AXES, ROTARY_AXES
-from .feedplan import CHECK_RTOL, axis_limits
-
-#: Largest |tilt| (rad) on every machine, whatever its file says: half a turn either way (a
-#: tilt axis beyond it is no tilt; the G-code reader refuses programs beyond it too).
-TILT_TRAVEL = np.pi
+from ..machine.limits import TILT_TRAVEL, AxisLimits, axis_limits  # noqa: F401 (re-exported)
+from .feedplan import CHECK_RTOL
 
 QUANTITIES: tuple[str, ...] = ("position", "velocity", "acceleration", "jerk")
 _UNITS = {"position": "", "velocity": "/s", "acceleration": "/s^2", "jerk": "/s^3"}
 #: Letters of rotary axes on any machine (slots 3 and 4 are rotary on every type).
 ROTARY_LETTERS = ("A", "B", "C")
-
-
-@dataclass(frozen=True)
-class AxisLimits:
-    """Per-axis limits, shape (5,) each, mm or rad (per s, s^2, s^3); ``inf`` where none;
-    ``axis_names``: the machine's letters of the five slots, for messages."""
-
-    position_min: np.ndarray
-    position_max: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    jerk: np.ndarray
-    axis_names: tuple[str, ...] = AXES
-
-    @classmethod
-    def from_machine(cls, machine) -> "AxisLimits":
-        get = lambda name, default: np.array(  # noqa: E731
-            [default if getattr(d, name, None) is None else getattr(d, name)
-             for d in machine.drives], dtype=float)
-        low, high = get("p_min", -np.inf), get("p_max", np.inf)
-        tilt_low, tilt_high = getattr(machine.kinematics, "tilt_limits", (None, None))
-        low[3] = max(low[3], -TILT_TRAVEL if tilt_low is None else tilt_low, -TILT_TRAVEL)
-        high[3] = min(high[3], TILT_TRAVEL if tilt_high is None else tilt_high, TILT_TRAVEL)
-        v, acc, j = axis_limits(machine)
-        return cls(position_min=low, position_max=high, velocity=v, acceleration=acc, jerk=j,
-                   axis_names=tuple(getattr(machine, "axis_names", AXES)))
 
 
 @dataclass(frozen=True)

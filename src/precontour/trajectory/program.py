@@ -90,7 +90,8 @@ from ..defaults import DEFAULT_CORNER_TOLERANCE as DEFAULT_TOLERANCE
 from ..errors import MachineLimitError, PrecontourError
 from ._program_geometry import (_across, _box, _pose_distance, _reach, _segment_distance,
                                 _violations)
-from .feedplan import CHECK_RTOL, axis_limits
+from ..machine.limits import axis_limits
+from .feedplan import CHECK_RTOL
 from .generate import DEFAULT_DWELL, default_max_samples
 from .retime import retime
 from .sampled import Trajectory

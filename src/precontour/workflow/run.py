@@ -1,8 +1,9 @@
 """The ``run`` workflow: program in, checked, compensated program out (:func:`run_program`):
-plan, compensate within the machine's limits (:func:`compensate_keeping_limits`, also what
-``compensate`` does by default), optionally learn against the realistic virtual machine
-(:func:`learn_on_ensemble`) or search the fastest feed within a contour tolerance, and check
-both commands on the virtual machine and its draws."""
+plan, compensate within the machine's limits (the route
+:func:`precontour.compensation.compensate` takes by default), optionally learn against the
+realistic virtual machine (:func:`~precontour.compensation.routes.learn_on_ensemble`) or
+search the fastest feed within a contour tolerance, and check both commands on the virtual
+machine and its draws."""
 
 from __future__ import annotations
 
@@ -13,23 +14,21 @@ from typing import Callable
 
 import numpy as np
 
-from ..compensation.pieces import AT_ONCE_SAMPLES
 from ..compensation.programmed_end import required_final_rest, with_final_rest
-from ..compensation.segments import learn_by_segments
-from ..compensation.within_limits import (LimitedCompensation, compensate_within_limits,
-                                          learn_within_limits, planned_if_uncompensated)
+from ..compensation.routes import can_learn, learn_on_ensemble
+from ..compensation.within_limits import LimitedCompensation, compensate_within_limits
 from ..defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                         DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL)
-from ..errors import InputError, ToleranceError, is_whole_number, notice, warning
+from ..errors import (InputError, ToleranceError, is_whole_number, warning,
+                      with_former_spellings)
 from ..files import check_signals
 from ..machine.machine_file import Machine, load_machine
+from ..machine.servo import load_servo
 from ..options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
-                       limit_options, with_former_spellings)
+                       limit_options)
 from ..planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
-from ..simulation.ensemble import MachineEnsemble, ensemble_actual
+from ..simulation.ensemble import MachineEnsemble
 from ..toolpath.writers import ProgramInfo, gcode_program, gcode_tolerances
-from ..trajectory.limits import AxisLimits
-from ..trajectory.sampled import Trajectory
 from .checks import check_on_draws, check_on_virtual_machine, worse_in_whole_message
 from .program import RunProgram, plan_run_program, read_run_program
 from .result import RunOutputs, RunResult, check_run_outputs
@@ -73,7 +72,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
     draws of the ensemble (the options', else ``ensemble``, default
     :class:`~.simulation.ensemble.MachineEnsemble` ()) and the result nowhere worse than
-    uncompensated on them, block by block (each source line; :func:`learn_on_ensemble`).
+    uncompensated on them, block by block (each source line;
+    :func:`~precontour.compensation.routes.learn_on_ensemble`).
     ``limits``: :class:`~.options.LimitOptions`, whose ``min_speed`` is the floor of the
     local slow-downs that keep the limits, a fraction of the planned speed (below it the
     planned commands are kept); ``run`` always keeps them.
@@ -145,7 +145,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
     machine_obj = load_machine(machine)
-    models = machine_obj.error_models(controller)
+    servo = load_servo(machine_obj, controller)
+    models = servo.models
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
                               max_samples=max_samples, format=format,
                               tool_table=tool_table)
@@ -170,7 +171,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     timings["plan"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    axis_limits = AxisLimits.from_machine(machine_obj)
+    axis_limits = servo.limits
 
     def round_progress(round_: int, message: str) -> None:
         step(1, f"{message}, round {round_}")
@@ -192,12 +193,12 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             line = planned.line
         def learned(limited):
             # a timing slowed beyond the learning's size is compensated without it
-            if not can_learn(limited.reference, machine_obj):
+            if not can_learn(servo, limited.reference):
                 return limited
-            return learn_on_ensemble(limited, machine_obj, learner, models, axis_limits,
-                                     learn, ensemble=learning_ensemble)
+            return learn_on_ensemble(servo, limited, learn, controller=learner,
+                                     ensemble=learning_ensemble)
 
-        refine = learned if learn and can_learn(planned, machine_obj) else None
+        refine = learned if learn and can_learn(servo, planned) else None
         feed = feed_within_tolerance(
             planned, machine_obj, controller, contour_tolerance, programmed=programmed,
             refine=refine, exempt_lines=_rapid_lines(source),
@@ -214,11 +215,11 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         limited = replace(found.limited, slowdowns=found.slowdowns,
                           planned_index=found.planned_index)
     if learn and feed is None:
-        if can_learn(limited.reference, machine_obj):
+        if can_learn(servo, limited.reference):
             step(1, f"learn against the virtual machine ({learn} pass(es))")
             start = time.perf_counter()
             limited = learn_on_ensemble(
-                limited, machine_obj, learner, models, axis_limits, learn,
+                servo, limited, learn, controller=learner,
                 ensemble=learning_ensemble, planned=planned,
                 # each command tried (a long program's segment by segment): learning on an
                 # hour-long program runs for many minutes
@@ -297,24 +298,6 @@ def _rapid_lines(source: RunProgram) -> tuple[int, ...]:
     return tuple(sorted(set(np.asarray(program.line)[rapid].tolist()) - feed_lines))
 
 
-def can_learn(reference: Trajectory, machine_obj: Machine, *, whole: bool = False) -> bool:
-    """Whether learning against the virtual machine can run on ``reference``; says why not,
-    in one notice: the virtual machine runs at the servo period. Learning within the limits
-    runs a trajectory of any length (segment by segment above
-    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, :mod:`.compensation.segments`);
-    ``whole``: learning that runs the whole trajectory at once (the unconstrained
-    compensation's), refused above that many samples (compensated in pieces, linearly)."""
-    if not machine_obj.at_servo_period(reference.ts):
-        notice(f"no learning: the trajectory's sample period {reference.ts:g} s is not the "
-               f"servo period {machine_obj.servo_period:g} s of the virtual machine")
-        return False
-    if whole and reference.n_samples > AT_ONCE_SAMPLES:
-        notice(f"no learning: {reference.n_samples} samples are more than "
-               f"{AT_ONCE_SAMPLES} (compensated in pieces)")
-        return False
-    return True
-
-
 def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
     """One line: where the compensated search misses the tolerance, by how much."""
     misses = feed.compensated.misses
@@ -326,70 +309,3 @@ def _tolerance_message(feed: FeedWithinTolerance, feed_scale_min: float) -> str:
     return (f"the compensated program does not keep the tolerance "
             f"{feed.tolerance.describe()} on the realistic virtual machine {why}: "
             f"{first.format()}{more}; --write-anyway writes it nevertheless")
-
-
-def learn_on_ensemble(limited: LimitedCompensation, machine_obj: Machine, controller: str,
-                      models, limits: AxisLimits, passes: int, *,
-                      ensemble: MachineEnsemble | None = None, progress=None,
-                      planned: Trajectory | None = None) -> LimitedCompensation:
-    """``limited`` improved by ``passes`` passes of learning within ``limits``
-    (:func:`~.compensation.within_limits.learn_within_limits`) against the draws of
-    ``ensemble`` of the realistic virtual machine running ``controller``
-    (:func:`~.simulation.ensemble.ensemble_actual`): every choice is taken on the worst draw,
-    and the command kept is nowhere worse than the uncompensated one on every draw, in whole
-    and block by block. Above :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples, segment
-    by segment (:func:`~.compensation.segments.learn_by_segments`). ``planned``: the
-    trajectory ``limited`` was compensated from; where learning keeps the uncompensated
-    command everywhere, that trajectory is returned as it was planned, without the slow-downs
-    made for the corrections (:func:`~.compensation.within_limits.planned_if_uncompensated`).
-    """
-    if limited.reference.n_samples > AT_ONCE_SAMPLES:
-        learned = learn_by_segments(
-            limited, machine_obj.kinematics, models, limits,
-            lambda t, start: ensemble_actual(t, machine_obj, controller, ensemble, start=start),
-            passes,
-            progress=progress)
-    else:
-        actual = ensemble_actual(limited.reference.t, machine_obj, controller, ensemble)
-        learned = learn_within_limits(limited, machine_obj.kinematics, models, limits, actual,
-                                      passes, progress=progress)
-    if planned is None:
-        return learned
-    return planned_if_uncompensated(learned, planned, machine_obj.kinematics, models, limits)
-
-
-def compensate_keeping_limits(traj: Trajectory, machine_obj: Machine, controller: str, *,
-                              learn: int | LearningOptions = 0,
-                              limits: LimitOptions = LimitOptions(), method: str = "contour",
-                              iterations: int = 1, tol_linear: float | None = None,
-                              tol_rotary: float | None = None, progress=None,
-                              pass_progress=None, learning_progress=None
-                              ) -> LimitedCompensation:
-    """What ``compensate`` does by default, as ``run`` does: compensate ``traj`` within the
-    machine's axis limits (slowing it down locally, never below ``limits.min_speed``, and
-    compensating again where needed; :func:`~.compensation.within_limits.
-    compensate_within_limits` with ``method``, ``iterations``, ``tol_linear``,
-    ``tol_rotary``), then, for ``learn`` passes (a number or :class:`~.options.
-    LearningOptions`), learn within them against the ensemble of the realistic virtual
-    machine running the learning controller (default ``controller``;
-    :func:`learn_on_ensemble`). The commands keep the limits, so ``export`` takes them.
-    ``progress(round, message)`` reports the compensation rounds, ``pass_progress(pass,
-    summary)`` the first round's passes, ``learning_progress(label, summary)`` each command
-    learning tries."""
-    learning = learning_options(learn)
-    models = machine_obj.error_models(controller)
-    axis_limits = AxisLimits.from_machine(machine_obj)
-    # a final rest long enough for the corrections to taper to zero, so that the commands end
-    # at the programmed end point (the controller holds the last command after them anyway)
-    traj = with_final_rest(traj, required_final_rest(models))
-    limited = compensate_within_limits(traj, machine_obj.kinematics, models, axis_limits,
-                                       progress=progress,
-                                       min_speed=limits.min_speed, method=method,
-                                       iterations=iterations, tol_linear=tol_linear,
-                                       tol_rotary=tol_rotary, pass_progress=pass_progress)
-    if learning.passes:
-        limited = learn_on_ensemble(limited, machine_obj, learning.controller or controller,
-                                    models, axis_limits, learning.passes,
-                                    ensemble=learning.ensemble, progress=learning_progress,
-                                    planned=traj)
-    return limited
