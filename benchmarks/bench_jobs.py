@@ -36,7 +36,7 @@ PROGRAM = HERE.parent / "tests" / "linuxcnc" / "data" / "3plus2.ngc"
 def _stage(name: str, traj, folder: Path):
     """The stage as a function of nothing, on ``traj``."""
     from bench_pipeline import _prepare
-    from precontour import load_machine
+    from precontour import load_machine, load_servo
     from precontour.compensation.pieces import compensate_program, contour_errors_program
     from precontour.prediction.contour import ReferencePath
     from precontour.prediction.tracking import predict_tracking
@@ -45,7 +45,8 @@ def _stage(name: str, traj, folder: Path):
     from precontour.workflow import check_on_draws
 
     machine = load_machine("zhang2013")
-    models = machine.error_models(CONTROLLER)
+    servo = load_servo(machine, CONTROLLER)
+    models = servo.models
     if name == "virtual machine (5 axes)":
         return lambda: simulate_trajectory(traj, machine, CONTROLLER)
     if name == "fit + predict (5 axes)":
@@ -56,9 +57,9 @@ def _stage(name: str, traj, folder: Path):
         q_act = traj.q - predict_tracking(traj.t, traj.q, models)(traj.t)
         return lambda: reference.errors(*machine.kinematics.forward(q_act))
     if name == "compensate, 1 pass":
-        return lambda: compensate_program(traj, machine.kinematics, models)
+        return lambda: compensate_program(servo, traj)
     if name == "draw check (5 draws)":
-        compensated = compensate_program(traj, machine.kinematics, models).trajectory.q
+        compensated = compensate_program(servo, traj).trajectory.q
         nominal = tuple(contour_errors_program(traj, q, machine.kinematics)
                         for q in (traj.q, compensated))
         return lambda: check_on_draws(traj, compensated, machine, CONTROLLER, nominal,

@@ -58,7 +58,7 @@ def _source_digest() -> str:
 
 def _trajectory(n_samples: int):
     """The synthetic trajectory with about n_samples samples (cached on disk)."""
-    from precontour import load_machine
+    from precontour import load_machine, load_servo
     from precontour.trajectory.generate import generate_trajectory
     from precontour.trajectory.sampled import Trajectory
     from bench_trajectory import synthetic_path
@@ -81,7 +81,7 @@ def _stage(name: str, traj):
     """The stage as a function of nothing, on ``traj``."""
     from scipy import signal
 
-    from precontour import load_machine
+    from precontour import load_machine, load_servo
     try:
         from precontour.compensation.pieces import compensate_program
     except ImportError:   # a version from before pieces, measured for comparison
@@ -93,7 +93,8 @@ def _stage(name: str, traj):
     from bench_trajectory import synthetic_path
 
     machine = load_machine("zhang2013")
-    models = machine.error_models(CONTROLLER)
+    servo = load_servo(machine, CONTROLLER)
+    models = servo.models
     if name == "trajectory generation":
         toolpath = synthetic_path(int(round(traj.n_samples / SAMPLES_PER_POINT)))
         return lambda: generate_trajectory(toolpath, machine)
@@ -111,9 +112,9 @@ def _stage(name: str, traj):
         q_act = traj.q - predict_tracking(traj.t, traj.q, models)(traj.t)
         return lambda: reference.errors(*machine.kinematics.forward(q_act))
     if name == "compensate, 1 pass":
-        return lambda: compensate_program(traj, machine.kinematics, models)
+        return lambda: compensate_program(servo, traj)
     if name == "compensate, --iterations 4":
-        return lambda: compensate_program(traj, machine.kinematics, models, iterations=4)
+        return lambda: compensate_program(servo, traj, iterations=4)
     if name == "virtual machine (discrete, friction)":
         return lambda: simulate_trajectory(traj, machine, CONTROLLER)
     if name == "lsim of the 5 loops":
@@ -158,7 +159,7 @@ def _child(*args: str) -> dict:
 
 def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
     """In a child process: the 10-hour program, predicted and compensated in pieces."""
-    from precontour import load_machine
+    from precontour import load_machine, load_servo
     from precontour.compensation.pieces import PIECE_SAMPLES, compensate_pieces, predict_pieces
     from precontour.trajectory.sampled import Trajectory
 
@@ -174,7 +175,7 @@ def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
         return Trajectory(index * ts, base.q[k], base.P[k], base.O[k])
 
     machine = load_machine("zhang2013")
-    models = machine.error_models(CONTROLLER)
+    servo = load_servo(machine, CONTROLLER)
     pieces = piece_samples or PIECE_SAMPLES
     result = {"samples": n, "duration": n * ts}
 
@@ -186,7 +187,7 @@ def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
               file=sys.stderr, flush=True)
     start = time.perf_counter()
     before = after = 0.0
-    for piece, part in compensate_pieces(read, n, ts, machine.kinematics, models,
+    for piece, part in compensate_pieces(servo, read, n, ts,
                                          piece_samples=pieces):
         before = max(before, float(part.before.tip.max()))
         after = max(after, float(part.after.tip.max()))
@@ -195,7 +196,7 @@ def _long_program(repeats: int = 300, piece_samples: int | None = None) -> None:
     result["compensate_tip_max_um"] = (1e3 * before, 1e3 * after)
     start = time.perf_counter()
     worst = 0.0
-    for piece, _, contour, _ in predict_pieces(read, n, ts, models, machine.kinematics,
+    for piece, _, contour, _ in predict_pieces(servo, read, n, ts,
                                                piece_samples=pieces):
         worst = max(worst, float(contour.tip.max()))
         report("predict", piece, start)

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.interpolate import make_interp_spline
 
 from docpage import stamp, write_page
-from precontour import load_machine
+from precontour import load_machine, load_servo
 from precontour.compensation.precompensate import compensate
 from precontour.compensation.stops import DEFAULT_LEARNING_PASSES, final_rest_index
 from precontour.prediction.contour import ReferencePath, contour_errors
@@ -142,7 +142,7 @@ def main(paths: list[str]) -> None:
         traj = trajectory_of(path, machine)
         reference = ReferencePath.from_trajectory(traj)
         for controller in CONTROLLERS:
-            models = machine.error_models(controller)
+            servo = load_servo(machine, controller)
 
             def run(q_traj, options):
                 sim = simulate(traj.t, q_traj.q, machine, controller, **options)
@@ -151,11 +151,11 @@ def main(paths: list[str]) -> None:
             realistic = ensemble_actual(traj.t, machine, controller)
 
             linear_start = time.perf_counter()
-            compensated = {1: compensate(traj, machine.kinematics, models, iterations=1)}
+            compensated = {1: compensate(servo, traj, iterations=1)}
             linear_time = time.perf_counter() - linear_start
-            compensated[4] = compensate(traj, machine.kinematics, models, iterations=4)
+            compensated[4] = compensate(servo, traj, iterations=4)
             learn_start = time.perf_counter()
-            learned = compensate(traj, machine.kinematics, models, machine_actual=realistic,
+            learned = compensate(servo, traj, machine_actual=realistic,
                                  learning_passes=DEFAULT_LEARNING_PASSES)
             learn_time = time.perf_counter() - learn_start
             cell = {}    # (machine, label) -> "tip max / mean, ori max / mean" reductions

@@ -41,7 +41,7 @@ import numpy as np
 
 from docpage import markdown_table, replace_section, stamp
 
-from precontour import builtin_path, generate_trajectory, load_machine
+from precontour import builtin_path, generate_trajectory, load_machine, load_servo
 from precontour.compensation.precompensate import compensate
 from precontour.prediction import ReferencePath, contour_errors
 from precontour.simulation import simulate
@@ -213,8 +213,9 @@ def main() -> None:
                     return simulate(t, q, plant, args.controller, **run).q_act
             options = {} if actual is None else dict(machine_actual=actual,
                                                      learning_passes=args.learn)
-            comp = compensate(traj, base.kinematics, mods, reference=reference, min_passes=1,
-                              **options)
+            # the base machine's servo with the models of this case
+            servo = dataclasses.replace(load_servo(base, args.controller), models=tuple(mods))
+            comp = compensate(servo, traj, reference=reference, min_passes=1, **options)
             after_sim = simulate(comp.trajectory.t, comp.trajectory.q, plant, args.controller, **run)
             after = contour_errors(reference, after_sim.q_act, base.kinematics).summary()
             red = {k: 100 * (1 - after[k] / before[k]) for k in

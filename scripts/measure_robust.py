@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from measure_compensation import _orientation, fan25_path  # noqa: E402
 
-from precontour import load_machine  # noqa: E402
+from precontour import load_machine, load_servo  # noqa: E402
 from precontour.compensation.blocks import block_starts, judge, worse_blocks  # noqa: E402
 from precontour.compensation.within_limits import (compensate_within_limits,  # noqa: E402
                                                    learn_within_limits)
@@ -42,7 +42,6 @@ from precontour.simulation.ensemble import MachineEnsemble, ensemble_actual  # n
 from precontour.toolpath import ToolPath  # noqa: E402
 from precontour.trajectory.builtin_paths import builtin_path  # noqa: E402
 from precontour.trajectory.generate import generate_trajectory  # noqa: E402
-from precontour.trajectory.limits import AxisLimits  # noqa: E402
 
 PATHS = ("paper", "circle", "cone", "fan", "fan25", "fan-reversals")
 CONTROLLERS = ("pid-high", "pid-low")
@@ -94,7 +93,6 @@ def main() -> None:
     parser.add_argument("--controllers", default=",".join(CONTROLLERS))
     args = parser.parse_args()
     machine = load_machine("zhang2013")
-    limits = AxisLimits.from_machine(machine)
     nominal = MachineEnsemble(draws=1)
     print("| path | controller | decided on | realistic machine: tip max removed %, median / "
           "worst | tip mean removed % | windows worse (worst draw) | held-out machines: tip "
@@ -102,16 +100,15 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.paths.split(","):
         for controller in args.controllers.split(","):
-            models = machine.error_models(controller)
+            servo = load_servo(machine, controller)
             rows = {mode: dict(max=[], mean=[], worse=0, runs=[], seconds=[]) for mode in MODES}
             for draw, path in enumerate(input_draws(toolpath(name), args.draws)):
                 traj = generate_trajectory(path, machine)
-                limited = compensate_within_limits(traj, machine.kinematics, models, limits)
+                limited = compensate_within_limits(servo, traj)
                 reference = limited.reference
                 for mode, (ensemble, options) in MODES.items():
                     start = time.perf_counter()
-                    learned = learn_within_limits(
-                        limited, machine.kinematics, models, limits,
+                    learned = learn_within_limits(servo, limited,
                         ensemble_actual(reference.t, machine, controller, ensemble), 4,
                         **options)
                     row = rows[mode]

@@ -142,3 +142,14 @@ def discrete_closed_loop_error(drive, gains, ts):
     num = np.polymul(Dp, Dc)
     den = np.polyadd(num, np.polymul(np.trim_zeros(Np[0], "f"), Nc))
     return num, den
+
+
+def servo_of(machine, controller: str, limits=None):
+    """``load_servo(machine, controller)``, with the axis ``limits`` a test sets instead of
+    the machine's where given."""
+    import dataclasses
+
+    from precontour import load_servo
+
+    servo = load_servo(machine, controller)
+    return servo if limits is None else dataclasses.replace(servo, limits=limits)

@@ -172,16 +172,15 @@ def test_compensate_without_learning_is_the_linear_pass(paper_csv, tmp_path, cap
     and is then the same linear pass; both on the plan given the final rest its corrections
     need to taper to zero at the programmed end point (0.82 s for pid-low, instead of the
     0.2 s dwell; issue 42 item 5)."""
-    from precontour import load_machine
+    from precontour import load_machine, load_servo
     from precontour.compensation.precompensate import compensate
     from precontour.compensation.programmed_end import required_final_rest, with_final_rest
     from precontour.tables import read_trajectory
 
     machine = load_machine("zhang2013")
     traj = read_trajectory(paper_csv)
-    models = machine.error_models("pid-low")
-    linear = compensate(with_final_rest(traj, required_final_rest(models)),
-                        machine.kinematics, models)
+    servo = load_servo(machine, "pid-low")
+    linear = compensate(servo, with_final_rest(traj, required_final_rest(servo.models)))
     for options in (["--ignore-limits"], []):
         out = tmp_path / f"comp{len(options)}.csv"
         assert main(["compensate", str(paper_csv), "--controller", "pid-low", "--learn", "0",

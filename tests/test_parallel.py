@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import servo_of
 from precontour.errors import InputError
 from precontour.parallel import jobs, map_ordered, program_executor, using_jobs
 
@@ -125,14 +126,14 @@ def test_a_long_program_in_pieces_is_the_same_with_one_job_and_with_two():
     from precontour.trajectory.generate import generate_trajectory
 
     machine = load_machine("zhang2013")
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     traj = generate_trajectory(builtin_path("fan"), machine)
     pieces = dict(piece_samples=traj.n_samples // 4, at_once_samples=traj.n_samples // 4)
     out = {}
     for n in (1, 2):
         with using_jobs(n):
-            predicted = predict_program(traj, models, machine.kinematics, **pieces)
-            compensated = compensate_program(traj, machine.kinematics, models, **pieces)
+            predicted = predict_program(servo, traj, **pieces)
+            compensated = compensate_program(servo, traj, **pieces)
             errors = contour_errors_program(traj, compensated.trajectory.q,
                                             machine.kinematics, **pieces)
             out[n] = (predicted, compensated, errors)

@@ -56,7 +56,7 @@ def test_predict_is_the_closed_form_of_each_axis(servo, paper):
 
 def test_compensate_without_limits_is_the_stage_function(servo, paper):
     ours = compensate(servo, paper, limits=False)
-    stage = compensate_stage(paper, servo.kinematics, servo.models)
+    stage = compensate_stage(servo, paper)
     np.testing.assert_array_equal(ours.commands.q, stage.trajectory.q)
     assert ours.reference is paper and not ours.within_limits and ours.slowdowns == ()
     assert ours.after.tip.max() == stage.after.tip.max()

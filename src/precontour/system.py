@@ -43,14 +43,16 @@ REALISM = {
 }
 
 
-def predict(servo: Servo, trajectory: Trajectory):
+def predict(servo: Servo, trajectory: Trajectory, *, tol_linear: float | None = None,
+            tol_rotary: float | None = None):
     """The tracking errors e(t) of every axis at every sample, in closed form (spec sections
     3-5), and the contour errors where ``trajectory`` carries its reference; returns a
-    :class:`~precontour.compensation.pieces.ProgramPrediction` (``e``, ``contour``)."""
+    :class:`~precontour.compensation.pieces.ProgramPrediction` (``e``, ``contour``).
+    ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (mm, rad; default 1 um,
+    1 urad; spec section 3). Long programs in overlapping pieces."""
     from .compensation.pieces import predict_program
 
-    return predict_program(trajectory, servo.models,
-                           servo.kinematics if trajectory.has_reference else None)
+    return predict_program(servo, trajectory, tol_linear=tol_linear, tol_rotary=tol_rotary)
 
 
 def simulate(servo: Servo, commands, *, realism: str = "realistic",

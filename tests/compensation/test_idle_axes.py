@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from conftest import servo_of
 from precontour.compensation.idle_axes import (hold_idle_axes, hold_resting_axes, idle_axes,
                                               resting_axes)
 from precontour.compensation.precompensate import compensate
@@ -74,7 +75,7 @@ def test_quantised_encoder_circle_not_made_worse(machine, circle):
     it). With the taper it comes 10 ms before the end: 7.13 um within the program, 9.45 um at
     most over 0.5 s of holding after it. Learning against the machine handles that slip."""
     assert np.ptp(circle.q[:, 0]) < 1e-9
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     reference = ReferencePath.from_trajectory(circle)
     run = dict(REALISTIC, encoder_resolution=TOL * [1, 1, 1, 10, 10])
     rest = final_rest_start(circle.q)
@@ -96,7 +97,7 @@ def test_quantised_encoder_circle_not_made_worse(machine, circle):
         return 1e3 * contour_errors(settling, sim.q_act, machine.kinematics).tip.max()
 
     before = tip(circle.q)
-    results = {hold: compensate(circle, machine.kinematics, models, reference=reference,
+    results = {hold: compensate(servo, circle, reference=reference,
                                 min_passes=1, hold_idle=hold) for hold in (False, True)}
     loose = results[False].trajectory.q
     assert 0 < np.abs(loose[:, 0] - circle.q[:, 0]).max() < 1e-4

@@ -4,8 +4,9 @@ and the compensated commands by far less than the spline fit's tolerance (measur
 import numpy as np
 import pytest
 
-from precontour.compensation.pieces import (Piece, compensate_program, contour_errors_program, overlap_samples,
-                                            plan_pieces, predict_program,
+from conftest import servo_of
+from precontour.compensation.pieces import (Piece, compensate_program, contour_errors_program,
+                                            overlap_samples, plan_pieces, predict_program,
                                             slowest_decay_rate)
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
@@ -57,12 +58,12 @@ def test_overlap_from_the_slowest_pole(machine):
 @pytest.mark.parametrize("controller", ["pid-high", "pid-low"])
 def test_predicting_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine, back_and_forth,
                                                                        controller):
-    models = machine.error_models(controller)
+    servo = servo_of(machine, controller)
     traj = back_and_forth
-    whole = predict_program(traj, models, machine.kinematics)
+    whole = predict_program(servo, traj)
     # cut in motion (1,000-sample pieces, far from the stops) and at stops
     for piece_samples in (1_000, 2_900):
-        cut = predict_program(traj, models, machine.kinematics, piece_samples=piece_samples,
+        cut = predict_program(servo, traj, piece_samples=piece_samples,
                               at_once_samples=0)
         assert cut.pieces >= 3
         scale = 1e-3 * np.array([1e-3] * 3 + [1e-6] * 2)  # 1/1000 of the fit tolerances
@@ -90,10 +91,10 @@ def test_contour_errors_in_pieces_are_those_of_the_whole(machine, back_and_forth
 
 def test_compensating_in_pieces_changes_nothing_beyond_the_fit_tolerance(machine,
                                                                          back_and_forth):
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     traj = back_and_forth
-    whole = compensate_program(traj, machine.kinematics, models, min_passes=1)
-    cut = compensate_program(traj, machine.kinematics, models, min_passes=1,
+    whole = compensate_program(servo, traj, min_passes=1)
+    cut = compensate_program(servo, traj, min_passes=1,
                              piece_samples=1_000, at_once_samples=0)
     scale = 1e-3 * np.array([1e-4] * 3 + [1e-7] * 2)     # 1/1000 of the fit tolerances
     assert np.all(np.abs(cut.trajectory.q - whole.trajectory.q).max(axis=0) <= scale)

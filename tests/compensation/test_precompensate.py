@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from conftest import servo_of
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.compensation.precompensate import compensate
 from precontour.compensation.programmed_end import (end_at_programmed_end,
@@ -45,12 +46,13 @@ def test_compensation_in_the_linear_virtual_machine(machine, paper, controller):
     lag left in the rest); with the rest, one pass removes 95.35 / 98.75 % of the max / mean
     tip error and 99.32 / 99.54 % of the orientation's (before: 95.35 / 98.76, 99.32 /
     99.57)."""
-    models = machine.error_models(controller)
+    servo = servo_of(machine, controller)
+    models = servo.models
     paper = with_final_rest(paper, required_final_rest(models))
     reference = ReferencePath.from_trajectory(paper)
     measured = {}
     for passes in (1, 4):
-        result = compensate(paper, machine.kinematics, models, iterations=passes)
+        result = compensate(servo, paper, iterations=passes)
         assert 1 <= result.iterations <= passes
         for label, traj in (("original", paper), ("compensated", result.trajectory)):
             sim = simulate_trajectory(traj, machine, controller, mode="continuous",
@@ -65,8 +67,9 @@ def test_compensation_in_the_linear_virtual_machine(machine, paper, controller):
 
 
 def test_tracking_method_adds_the_predicted_errors(machine, paper):
-    models = machine.error_models("pid-low")
-    result = compensate(paper, machine.kinematics, models, method="tracking")
+    servo = servo_of(machine, "pid-low")
+    models = servo.models
+    result = compensate(servo, paper, method="tracking")
     e = predict_tracking(paper.t, paper.q, models, tol_linear=1e-4, tol_rotary=1e-7)(paper.t)
     # the corrections taper to zero over the final rest: the commands end at the programmed
     # end point (issue 42 item 5)
@@ -79,8 +82,8 @@ def test_tracking_method_adds_the_predicted_errors(machine, paper):
 def test_compensated_commands_stay_smooth(machine, paper):
     """Paper Fig. 16: velocity and acceleration of the commands nearly unchanged, and the
     correction a smooth function of time (no sample-to-sample steps)."""
-    models = machine.error_models("pid-high")
-    result = compensate(paper, machine.kinematics, models, iterations=2)
+    servo = servo_of(machine, "pid-high")
+    result = compensate(servo, paper, iterations=2)
     q_ref, q_comp = paper.q, result.trajectory.q
     assert np.all(np.isfinite(q_comp))
     for order, bound in ((1, 0.01), (2, 0.05)):
@@ -96,8 +99,8 @@ def test_compensated_commands_stay_smooth(machine, paper):
 
 
 def test_bad_arguments(machine, paper):
-    models = machine.error_models("pid-low")
+    servo = servo_of(machine, "pid-low")
     with pytest.raises(ValueError, match="unknown compensation method 'magic'"):
-        compensate(paper, machine.kinematics, models, method="magic")
+        compensate(servo, paper, method="magic")
     with pytest.raises(ValueError, match="iterations must be >= 1"):
-        compensate(paper, machine.kinematics, models, iterations=0)
+        compensate(servo, paper, iterations=0)

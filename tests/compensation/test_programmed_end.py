@@ -154,7 +154,7 @@ def test_compensated_commands_end_at_the_programmed_end(name, controller, servos
     assert 1e3 * comp.after.tip.max() <= tip * (1 + MARGIN) + ROUNDING
     assert 1e6 * comp.after.orientation.max() <= orientation * (1 + MARGIN) + ROUNDING
 
-    alone = compensate_alone(traj, servo.kinematics, servo.models).trajectory.q
+    alone = compensate_alone(servo, traj).trajectory.q
     assert np.abs(alone[-1] - traj.q[-1]).max() <= 1e-9
     unlimited = compensate(servo, traj, limits=False)      # compensate --ignore-limits
     assert np.abs(unlimited.commands.q[-1] - traj.q[-1]).max() <= 1e-9

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import servo_of
 from precontour.compensation.pieces import AT_ONCE_SAMPLES
 from precontour.compensation.segments import learn_by_segments, plan_segments
 from precontour.compensation.within_limits import compensate_within_limits, learn_within_limits
@@ -14,7 +15,6 @@ from precontour.prediction.contour import ReferencePath, contour_errors
 from precontour.simulation.ensemble import MachineEnsemble, ensemble_actual
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
-from precontour.trajectory.limits import AxisLimits
 from precontour.trajectory.sampled import Trajectory
 
 from test_within_limits import _nowhere_worse_on_every_draw
@@ -36,9 +36,8 @@ def test_segmented_learning_is_nowhere_worse_and_close_to_learning_the_whole(mac
     mean."""
     controller = "pid-high"
     models = machine.error_models(controller)
-    limits = AxisLimits.from_machine(machine)
     traj = generate_trajectory(builtin_path("paper"), machine, feed=35.0)
-    limited = compensate_within_limits(traj, machine.kinematics, models, limits)
+    limited = compensate_within_limits(servo_of(machine, controller), traj)
     reference = limited.reference
     segments = plan_segments(reference, models, SEGMENT)
     assert len(segments) == 3 and all(s.start > 0 for s in segments[1:])
@@ -49,12 +48,12 @@ def test_segmented_learning_is_nowhere_worse_and_close_to_learning_the_whole(mac
         sizes.append(t.size)
         return ensemble_actual(t, machine, controller, start=start)
 
-    segmented = learn_by_segments(limited, machine.kinematics, models, limits, machine_of, 4,
+    segmented = learn_by_segments(servo_of(machine, controller), limited, machine_of, 4,
                                   segment_samples=SEGMENT)
     # bounded memory: no machine run covers the whole program, only a segment and its overlaps
     assert len(sizes) == 3 and max(sizes) < reference.n_samples
     assert sizes == [s.stop - s.start for s in segments]
-    whole = learn_within_limits(limited, machine.kinematics, models, limits,
+    whole = learn_within_limits(servo_of(machine, controller), limited,
                                 ensemble_actual(reference.t, machine, controller), 4)
     q = segmented.result.trajectory.q
     assert segmented.check.ok
@@ -78,17 +77,15 @@ def test_short_programs_learn_whole(machine, monkeypatch):
     """At most AT_ONCE_SAMPLES samples, ``run``'s learning is the whole-program learning
     itself (the commands of before): learn_by_segments is not called."""
     from precontour.compensation import routes   # where run's learning looks them up
-    from precontour.machine.servo import load_servo
 
     called = []
     monkeypatch.setattr(routes, "learn_by_segments",
                         lambda *a, **k: called.append(1) or pytest.fail("segmented"))
-    monkeypatch.setattr(routes, "learn_within_limits", lambda limited, *a, **k: limited)
+    monkeypatch.setattr(routes, "learn_within_limits", lambda servo, limited, *a, **k: limited)
     traj = generate_trajectory(builtin_path("paper"), machine)
-    limited = compensate_within_limits(traj, machine.kinematics,
-                                       machine.controller("pid-high").error_models(
-                                           machine.drives), AxisLimits.from_machine(machine))
-    assert routes.learn_on_ensemble(load_servo(machine, "pid-high"), limited, 4) is limited
+    servo = servo_of(machine, "pid-high")
+    limited = compensate_within_limits(servo, traj)
+    assert routes.learn_on_ensemble(servo, limited, 4) is limited
     assert not called
 
 

@@ -15,7 +15,7 @@ from precontour.toolpath import ToolPath
 from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 
-from conftest import nanometre_draws
+from conftest import nanometre_draws, servo_of
 
 REALISTIC = dict(mode="discrete", friction=True, ff_friction=True)
 
@@ -58,12 +58,12 @@ def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command
     """Never worse: on a (made-up) machine whose actual motion moves away from the reference
     by five times whatever the command changes, every compensated candidate is worse than the
     reference command, so the reference command is kept."""
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
 
     def punishing(q):
         return fan_like.q - 5.0 * (q - fan_like.q)
 
-    result = compensate(fan_like, machine.kinematics, models, machine_actual=punishing,
+    result = compensate(servo, fan_like, machine_actual=punishing,
                         learning_passes=1)
     assert result.learning.chosen == "uncompensated"
     assert result.iterations == 0
@@ -72,7 +72,7 @@ def test_a_machine_that_punishes_every_correction_gets_the_uncompensated_command
 
 
 def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like):
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     calls = []
 
     def actual(q):
@@ -80,7 +80,7 @@ def test_learning_counts_machine_runs_and_reports_what_it_kept(machine, fan_like
         return simulate(fan_like.t, q, machine, "pid-high", **REALISTIC).q_act
 
     passes = 2
-    result = compensate(fan_like, machine.kinematics, models, machine_actual=actual,
+    result = compensate(servo, fan_like, machine_actual=actual,
                         learning_passes=passes)
     report = result.learning
     # reference, then per iterate of the plain sequence (linear + passes) itself and its
@@ -117,15 +117,15 @@ def test_learning_removes_the_final_stop_error_on_the_fan_path(machine):
     machines removes >= 85 %. Over 10 draws (:func:`conftest.nanometre_draws`) it kept
     0.055-0.089 of the max (deciding on the realistic machine alone, 0.056-0.102), so the
     worst of :data:`conftest.FRICTION_DRAWS` is asserted <= 0.15."""
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     for path in nanometre_draws(builtin_path("fan")):
         traj = generate_trajectory(path, machine)
 
         def actual(q):
             return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
-        linear = compensate(traj, machine.kinematics, models)
-        learned = compensate(traj, machine.kinematics, models,
+        linear = compensate(servo, traj)
+        learned = compensate(servo, traj,
                              machine_actual=ensemble_actual(traj.t, machine, "pid-high"))
         reference = ReferencePath.from_trajectory(traj)
 
@@ -175,12 +175,12 @@ def _learned_and_reference_errors(traj, machine, monkeypatch=None, **learning_op
         def settings(**kwargs):
             return LearningSettings(**kwargs, **learning_options)
         monkeypatch.setattr(precompensate, "LearningSettings", settings)
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
 
     def actual(q):
         return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
-    learned = compensate(traj, machine.kinematics, models,
+    learned = compensate(servo, traj,
                          machine_actual=ensemble_actual(traj.t, machine, "pid-high"))
     reference = ReferencePath.from_trajectory(traj)
     return (contour_errors(reference, actual(traj.q), machine.kinematics),
@@ -236,8 +236,9 @@ def test_commands_refused_as_inadmissible_are_not_kept(machine, fan_like):
     def errors_of(q_act):
         return contour_errors(reference, q_act, machine.kinematics)
 
-    models = machine.error_models("pid-high")
-    linear = compensate(fan_like, machine.kinematics, models).trajectory.q
+    servo = servo_of(machine, "pid-high")
+
+    linear = compensate(servo, fan_like).trajectory.q
     q, report = learn_at_stops(fan_like.q, linear, fan_like.ts, actual, errors_of,
                                precompensate.learning_step(fan_like, reference,
                                                            machine.kinematics),

@@ -21,7 +21,7 @@ from precontour.trajectory.builtin_paths import builtin_path
 from precontour.trajectory.generate import generate_trajectory
 from precontour.trajectory.limits import AxisLimits
 
-from conftest import FRICTION_DRAWS, nanometre_draws
+from conftest import FRICTION_DRAWS, nanometre_draws, servo_of
 
 
 @pytest.fixture(scope="module")
@@ -34,10 +34,9 @@ def _peaks(q, ts):
 
 
 def test_slows_down_where_compensation_breaks_a_limit(machine, circle):
-    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     line = np.arange(circle.n_samples) // 10 + 1
-    result = compensate_within_limits(circle, machine.kinematics, models, limits, line=line)
+    result = compensate_within_limits(servo_of(machine, "pid-high"), circle, line=line)
     # The first compensation breaks a jerk limit (A and C near the end of the circle).
     assert not result.first_check.ok and result.rounds >= 2
     q = result.result.trajectory.q
@@ -57,32 +56,27 @@ def test_slows_down_where_compensation_breaks_a_limit(machine, circle):
 
 
 def test_within_limits_is_left_alone(machine, circle):
-    models = machine.error_models("pid-low")
-    result = compensate_within_limits(circle, machine.kinematics, models,
-                                      AxisLimits.from_machine(machine))
+    result = compensate_within_limits(servo_of(machine, "pid-low"), circle)
     assert result.rounds == 1 and result.slowdowns == ()
     assert result.reference is circle
 
 
 def test_impossible_limits_are_errors(machine, circle):
-    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
     travel = dataclasses.replace(limits, position_max=np.full(5, 10.0))
     with pytest.raises(MachineLimitError, match="travel"):
-        compensate_within_limits(circle, machine.kinematics, models, travel)
+        compensate_within_limits(servo_of(machine, "pid-high", travel), circle)
     # the planned commands themselves break these limits: no taper can help
     tight = dataclasses.replace(limits, jerk=limits.jerk * 0.01)
     with pytest.raises(MachineLimitError, match=r"after 1 compensation round\(s\)"):
-        compensate_within_limits(circle, machine.kinematics, models, tight, max_rounds=1)
+        compensate_within_limits(servo_of(machine, "pid-high", tight), circle, max_rounds=1)
 
 
 def test_windows_slowing_cannot_cure_fall_back_to_the_planned_commands(machine, circle):
-    models = machine.error_models("pid-high")
-    limits = AxisLimits.from_machine(machine)
-    first = compensate_within_limits(circle, machine.kinematics, models, limits)
+    first = compensate_within_limits(servo_of(machine, "pid-high"), circle)
     assert first.rounds >= 2 and not first.uncompensated   # slowing alone keeps the limits
     # with no round to slow down in, the windows over a limit keep the planned commands
-    once = compensate_within_limits(circle, machine.kinematics, models, limits, max_rounds=1)
+    once = compensate_within_limits(servo_of(machine, "pid-high"), circle, max_rounds=1)
     assert once.check.ok and once.uncompensated
     t = once.reference.t
     for start, stop in once.uncompensated:
@@ -99,11 +93,10 @@ def test_no_window_is_slowed_below_the_floor(machine, path, floor, left_out):
     finite differences). Where the floor stopped the slowing (circle at 0.9 needed none: its
     retiming margin covered it), the planned commands are kept."""
     traj = generate_trajectory(builtin_path(path), machine)
-    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
-    free = compensate_within_limits(traj, machine.kinematics, models, limits, min_speed=0.5)
+    free = compensate_within_limits(servo_of(machine, "pid-high"), traj, min_speed=0.5)
     assert min(s.speed for s in free.slowdowns) < floor - 0.05
-    floored = compensate_within_limits(traj, machine.kinematics, models, limits,
+    floored = compensate_within_limits(servo_of(machine, "pid-high"), traj,
                                        min_speed=floor)
     assert np.diff(floored.planned_index).min() >= floor
     assert min(s.speed for s in floored.slowdowns) >= floor
@@ -120,20 +113,16 @@ def test_no_window_is_slowed_below_the_floor(machine, path, floor, left_out):
 
 
 def test_a_floor_of_one_never_slows_and_keeps_the_limits(machine, circle):
-    models = machine.error_models("pid-high")
-    limits = AxisLimits.from_machine(machine)
-    result = compensate_within_limits(circle, machine.kinematics, models, limits, min_speed=1.0)
+    result = compensate_within_limits(servo_of(machine, "pid-high"), circle, min_speed=1.0)
     assert result.slowdowns == () and result.reference.n_samples == circle.n_samples
     assert result.check.ok and result.uncompensated
     with pytest.raises(ValueError, match="min_speed"):
-        compensate_within_limits(circle, machine.kinematics, models, limits, min_speed=0.0)
+        compensate_within_limits(servo_of(machine, "pid-high"), circle, min_speed=0.0)
 
 
 def test_splicing_matches_compensating_everything_again(machine, circle):
-    models = machine.error_models("pid-high")
-    limits = AxisLimits.from_machine(machine)
-    spliced = compensate_within_limits(circle, machine.kinematics, models, limits, splice=True)
-    full = compensate_within_limits(circle, machine.kinematics, models, limits, splice=False)
+    spliced = compensate_within_limits(servo_of(machine, "pid-high"), circle, splice=True)
+    full = compensate_within_limits(servo_of(machine, "pid-high"), circle, splice=False)
     assert spliced.rounds == full.rounds >= 2
     assert spliced.reference.n_samples == full.reference.n_samples
     dq = np.abs(spliced.result.trajectory.q - full.result.trajectory.q).max(axis=0)
@@ -200,9 +189,9 @@ def test_rough_corrections_are_smoothed_instead_of_slowed(machine, monkeypatch):
     from precontour.compensation.blocks import ORIENTATION_MARGIN, TIP_MARGIN, margin_bound
 
     traj = generate_trajectory(_spiral(6000), machine)
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     limits = AxisLimits.from_machine(machine)
-    limited = compensate_within_limits(traj, machine.kinematics, models, limits)
+    limited = compensate_within_limits(servo_of(machine, "pid-high"), traj)
     assert not limited.first_check.ok and limited.check.ok and limited.smoothed
     q = limited.result.trajectory.q
     for peak, limit in zip(_peaks(q, traj.ts), (limits.velocity, limits.acceleration,
@@ -210,7 +199,7 @@ def test_rough_corrections_are_smoothed_instead_of_slowed(machine, monkeypatch):
         assert np.all(peak <= limit * (1 + 1e-9))
     # the compensated commands on the same (final) timing, limits not kept
     reference = limited.reference
-    free = compensate(reference, machine.kinematics, models).trajectory.q
+    free = compensate(servo, reference).trajectory.q
     path = ReferencePath.from_trajectory(reference)
     errors = {label: contour_errors(path, simulate(reference.t, command, machine, "pid-high",
                                                    mode="continuous", friction=False,
@@ -230,8 +219,8 @@ def test_rough_corrections_are_smoothed_instead_of_slowed(machine, monkeypatch):
             compensated.orientation[inside].max(), ORIENTATION_MARGIN)
     # without it, slowing down alone
     monkeypatch.setattr(within_limits, "smooth_instead_of_slowing",
-                        lambda reference, q, *args: (q, []))
-    slowed = compensate_within_limits(traj, machine.kinematics, models, limits)
+                        lambda servo, reference, q, *args: (q, []))
+    slowed = compensate_within_limits(servo_of(machine, "pid-high"), traj)
     assert not slowed.smoothed and slowed.check.ok
     assert limited.added_time < 0.5 * slowed.added_time
 
@@ -240,9 +229,7 @@ def test_a_blend_that_would_leave_the_path_is_slowed_instead(machine, circle):
     """On ``circle`` with pid-high the jerk limit breaks near the end, where the blend into
     tracking-error pre-compensation would leave 2.96 um against the compensated commands'
     0.11 um (predicted): that window is slowed down, not smoothed."""
-    models = machine.error_models("pid-high")
-    limits = AxisLimits.from_machine(machine)
-    result = compensate_within_limits(circle, machine.kinematics, models, limits)
+    result = compensate_within_limits(servo_of(machine, "pid-high"), circle)
     assert not result.first_check.ok and not result.smoothed and result.slowdowns
 
 #: A TCP program whose first feed move starts where a rapid ends, at an angle, and whose
@@ -269,9 +256,8 @@ def test_kinks_are_smoothed_instead_of_slowed(tmp_path, monkeypatch):
     program = tmp_path / "corner.ngc"
     program.write_text(CORNER_PROGRAM)
     traj, _ = load_program_trajectory(program, machine)
-    models = machine.error_models("pid-high")
     limits = AxisLimits.from_machine(machine)
-    smoothed = compensate_within_limits(traj, machine.kinematics, models, limits)
+    smoothed = compensate_within_limits(servo_of(machine, "pid-high"), traj)
     # the first compensation's corner jumps ask for far more stretch than dynamics would
     assert smoothed.first_check.stretch.max() > within_limits.KINK_STRETCH
     assert smoothed.check.ok and smoothed.kinks
@@ -292,7 +278,7 @@ def test_kinks_are_smoothed_instead_of_slowed(tmp_path, monkeypatch):
     # stretched this 9 s program by 8.3 s; smoothing them leaves 0.9 s of slowing for the
     # corrections' dynamics.
     monkeypatch.setattr(within_limits, "KINK_STRETCH", np.inf)
-    slowed = compensate_within_limits(traj, machine.kinematics, models, limits, min_speed=1e-3)
+    slowed = compensate_within_limits(servo_of(machine, "pid-high"), traj, min_speed=1e-3)
     assert not slowed.kinks
     assert smoothed.added_time < 0.25 * slowed.added_time
     # and the predicted tip error still falls by most of its size
@@ -356,7 +342,7 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
     motion differ from run to run there), so the worst of the five is bounded above it, by
     0.6, and their median by 0.2. Unsmoothed learning (``compensate``) breaks the jerk
     limit."""
-    models = machine.error_models("pid-high")
+    servo = servo_of(machine, "pid-high")
     limits = AxisLimits.from_machine(machine)
     ensemble = MachineEnsemble()
     ratios = []
@@ -366,8 +352,8 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
         def actual(q):
             return simulate(traj.t, q, machine, "pid-high", **REALISTIC).q_act
 
-        limited = compensate_within_limits(traj, machine.kinematics, models, limits)
-        learned = learn_within_limits(limited, machine.kinematics, models, limits,
+        limited = compensate_within_limits(servo_of(machine, "pid-high"), traj)
+        learned = learn_within_limits(servo_of(machine, "pid-high"), limited,
                                       ensemble_actual(limited.reference.t, machine, "pid-high",
                                                       ensemble),
                                       DEFAULT_LEARNING_PASSES)
@@ -389,7 +375,7 @@ def test_learning_within_limits_keeps_them_and_shrinks_the_max(machine):
             assert _nowhere_worse_on_every_draw(learned.reference, q, machine, "pid-high",
                                                 ensemble) <= 0.0
     assert max(ratios) <= 0.6 and np.median(ratios) <= 0.2, ratios
-    unsmoothed = compensate(traj, machine.kinematics, models, machine_actual=actual)
+    unsmoothed = compensate(servo, traj, machine_actual=actual)
     assert np.any(_peaks(unsmoothed.trajectory.q, traj.ts)[2] > limits.jerk)   # the problem
 
 

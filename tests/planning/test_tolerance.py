@@ -18,7 +18,7 @@ from precontour.tables import read_trajectory
 from precontour.trajectory.generate import generate_trajectory
 from precontour.workflow import RunOutputs, run_program, write_run_outputs
 
-from conftest import nanometre_draws
+from conftest import nanometre_draws, servo_of
 from measured_paths import fan25, flank
 
 TOLERANCE = 0.010   # mm
@@ -162,8 +162,8 @@ def test_a_looser_tolerance_never_gives_a_longer_program(machine):
     2.12 s, 8.17 / 5.75 / 3.73 and 2.29 s)."""
     for make in (flank, fan25):
         traj = generate_trajectory(make(), machine, ts=machine.servo_period)
-        results = [feed_within_tolerance(traj, machine, "pid-low", ContourTolerance(tol),
-                                         ensemble=MachineEnsemble())
+        results = [feed_within_tolerance(servo_of(machine, "pid-low"), traj,
+                                         ContourTolerance(tol), ensemble=MachineEnsemble())
                    for tol in (0.010, 0.020, 0.040)]
         for variant in ("baseline", "compensated"):
             durations = [getattr(r, variant).duration for r in results]
@@ -275,7 +275,8 @@ def test_commands_whose_kinks_were_smoothed_in_the_first_round_keep_the_limits(m
     from precontour.trajectory.limits import AxisLimits, check_limits
 
     traj = generate_trajectory(flank(), machine, ts=machine.servo_period)
-    found = search_feed(traj, machine, "pid-low", ContourTolerance(TOLERANCE), compensate=True)
+    found = search_feed(servo_of(machine, "pid-low"), traj, ContourTolerance(TOLERANCE),
+                        compensate=True)
     assert found.limited.rounds == 1 and found.limited.kinks
     assert check_limits(found.commands.q, found.commands.ts,
                         AxisLimits.from_machine(machine)).ok

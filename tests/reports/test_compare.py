@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from conftest import servo_of
 from precontour import cli
 from precontour.reports import compare, compare_report
 from precontour.compensation.precompensate import (COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY,
@@ -261,8 +262,8 @@ def test_min_passes_keeps_a_pass_that_does_not_improve(cli_run, machine):
     # compensate() alone would keep the uncompensated commands; min_passes=1 keeps the pass.
     result, _, _ = cli_run
     traj = result.trajectory
-    models = machine.error_models("p-pi-high")
-    default = compensate(traj, machine.kinematics, models, method="tracking")
+    servo = servo_of(machine, "p-pi-high")
+    default = compensate(servo, traj, method="tracking")
     assert default.iterations == 0
     np.testing.assert_array_equal(default.trajectory.q, traj.q)
     kept = result.run("p-pi-high", "tracking").compensation_result
@@ -271,7 +272,7 @@ def test_min_passes_keeps_a_pass_that_does_not_improve(cli_run, machine):
     assert kept.history[1] == kept.after.summary()
     for bad in (-1, 2):
         with pytest.raises(ValueError, match=rf"min_passes must be within 0..1, got {bad}"):
-            compensate(traj, machine.kinematics, models, min_passes=bad)
+            compensate(servo, traj, min_passes=bad)
 
 
 def test_band_power_of_two_sinusoids():

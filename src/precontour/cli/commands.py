@@ -30,23 +30,22 @@ def _about(path):
 
 
 def run_predict(args: argparse.Namespace) -> int:
-    from ..compensation.pieces import predict_program
-    from ..machine.machine_file import load_machine
+    from ..system import load_servo, predict
     from ..tables import (COMMAND_TOLERANCE, check_output_table, read_trajectory,
                          write_columns)
 
     start = time.perf_counter()
     inputs = input_files(args.trajectory, args.machine)
     check_output_table(args.output, inputs)
-    machine = load_machine(args.machine)
-    models = machine.error_models(args.controller)
+    servo = load_servo(args.machine, args.controller)
+    machine = servo.machine
     # commands (e.g. pre-compensated ones) are measured against their own reference columns
     traj = read_trajectory(args.trajectory, kinematics=machine.kinematics,
                            tolerance=COMMAND_TOLERANCE)
     # long programs are predicted in pieces (bounded memory; compensation/pieces.py)
     with _about(args.trajectory):
-        prediction = predict_program(traj, models, machine.kinematics,
-                                     tol_linear=args.tol_linear, tol_rotary=args.tol_rotary)
+        prediction = predict(servo, traj, tol_linear=args.tol_linear,
+                             tol_rotary=args.tol_rotary)
     e = prediction.e
     columns = {"t": traj.t}
     columns.update({f"e{axis}": e[:, i] for i, axis in enumerate(machine.axis_names)})

@@ -265,8 +265,8 @@ def _predicted(servo, timing: ControllerTrace, method: str) -> np.ndarray:
 
     # at the trace's own timing (the overlay adds to the commands the controller plans), its
     # corrections tapered within the trace's final rest
-    commands = compensate_program(timing.reference(servo.kinematics), servo.kinematics,
-                                  servo.models, method=method).trajectory.q
+    commands = compensate_program(servo, timing.reference(servo.kinematics),
+                                  method=method).trajectory.q
     if commands.shape != timing.command.shape:   # pragma: no cover - compensate_program keeps it
         raise RuntimeError("the compensation changed the trace's timing")
     return commands

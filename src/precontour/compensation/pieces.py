@@ -25,6 +25,7 @@ import numpy as np
 
 from ..defaults import DEFAULT_LEARNING_PASSES
 from ..machine.drives import LinearErrorModel
+from ..machine.servo import Servo
 from ..parallel import map_ordered
 from ..prediction.contour import (DEFAULT_WINDOW, MAX_WINDOW_FACTOR, ContourErrors,
                                   ReferencePath)
@@ -141,12 +142,12 @@ class ProgramPrediction:
         return np.abs(self.e).max(axis=0)
 
 
-def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorModel, ...],
-                   kinematics, *, tol_linear: float | None = None,
+def predict_pieces(servo: Servo, read, n_samples: int, ts: float, *, tol_linear: float | None = None,
                    tol_rotary: float | None = None, piece_samples: int = PIECE_SAMPLES):
     """Predict a program given only ``read(start, stop) -> Trajectory`` of its samples, piece
     by piece; yields ``(piece, e, contour, n_knots)`` for the kept samples of each piece
     (``contour`` None without a reference). Memory is bounded by the piece size."""
+    kinematics, models = servo.kinematics, servo.models
     pieces = plan_pieces(n_samples, overlap_samples(models, ts, 1),
                          lambda a, b: read(a, b).q, piece_samples, ts)
 
@@ -169,8 +170,7 @@ def predict_pieces(read, n_samples: int, ts: float, models: tuple[LinearErrorMod
     yield from map_ordered(one, pieces)
 
 
-def predict_program(traj: Trajectory, models: tuple[LinearErrorModel, ...], kinematics, *,
-                    tol_linear: float | None = None, tol_rotary: float | None = None,
+def predict_program(servo: Servo, traj: Trajectory, *, tol_linear: float | None = None, tol_rotary: float | None = None,
                     piece_samples: int = PIECE_SAMPLES,
                     at_once_samples: int = AT_ONCE_SAMPLES) -> ProgramPrediction:
     """Tracking errors e(t) at every sample (and contour errors if ``traj`` has its
@@ -178,11 +178,10 @@ def predict_program(traj: Trajectory, models: tuple[LinearErrorModel, ...], kine
     n = traj.n_samples
     e = np.empty_like(traj.q)
     parts = []
-    knots = np.zeros(len(models), dtype=np.int64)
+    knots = np.zeros(len(servo.models), dtype=np.int64)
     pieces = 0
     for piece, e_kept, contour, n_knots in predict_pieces(
-            lambda a, b: _slice(traj, a, b), n, traj.ts, models, kinematics,
-            tol_linear=tol_linear, tol_rotary=tol_rotary,
+            servo, lambda a, b: _slice(traj, a, b), n, traj.ts, tol_linear=tol_linear, tol_rotary=tol_rotary,
             piece_samples=n if n <= at_once_samples else piece_samples):
         e[piece.keep_start:piece.keep_stop] = e_kept
         knots += n_knots
@@ -216,8 +215,8 @@ def contour_errors_program(reference: Trajectory, q_act: np.ndarray, kinematics,
                                                    reference.ts))))
 
 
-def compensate_pieces(read, n_samples: int, ts: float, kinematics,
-                      models: tuple[LinearErrorModel, ...], *, method: str = "contour",
+def compensate_pieces(servo: Servo, read, n_samples: int, ts: float, *,
+                      method: str = "contour",
                       iterations: int = 1, tol_linear: float | None = None,
                       tol_rotary: float | None = None, min_passes: int = 0,
                       hold_idle: bool = True, piece_samples: int = PIECE_SAMPLES):
@@ -228,11 +227,11 @@ def compensate_pieces(read, n_samples: int, ts: float, kinematics,
     :func:`compensate`'s; learning against a machine model is not among them (it runs the
     whole trajectory at once)."""
     chained = 2 * iterations + 1
-    pieces = plan_pieces(n_samples, overlap_samples(models, ts, chained),
+    pieces = plan_pieces(n_samples, overlap_samples(servo.models, ts, chained),
                          lambda a, b: read(a, b).q, piece_samples, ts)
 
     def one(piece):
-        result = compensate(read(piece.start, piece.stop), kinematics, models, method=method,
+        result = compensate(servo, read(piece.start, piece.stop), method=method,
                             iterations=iterations, tol_linear=tol_linear,
                             tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle,
                             # only the last piece ends where the program does
@@ -247,8 +246,7 @@ def compensate_pieces(read, n_samples: int, ts: float, kinematics,
     yield from map_ordered(one, pieces)
 
 
-def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
-                       method: str = "contour", iterations: int = 1,
+def compensate_program(servo: Servo, traj: Trajectory, *, method: str = "contour", iterations: int = 1,
                        tol_linear: float | None = None, tol_rotary: float | None = None,
                        min_passes: int = 0, hold_idle: bool = True, progress=None,
                        machine_actual=None, learning_passes: int = DEFAULT_LEARNING_PASSES,
@@ -266,7 +264,7 @@ def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorMo
     fits = dict(method=method, iterations=iterations, tol_linear=tol_linear,
                 tol_rotary=tol_rotary, min_passes=min_passes, hold_idle=hold_idle)
     if n <= at_once_samples:
-        return compensate(traj, kinematics, models, progress=progress,
+        return compensate(servo, traj, progress=progress,
                           machine_actual=machine_actual, learning_passes=learning_passes,
                           learning_progress=learning_progress, **fits)
     if machine_actual is not None:
@@ -274,9 +272,8 @@ def compensate_program(traj: Trajectory, kinematics, models: tuple[LinearErrorMo
                          f"than {at_once_samples}")
     q = np.empty_like(traj.q)
     before, after, passes = [], [], 0
-    for piece, result in compensate_pieces(lambda a, b: _slice(traj, a, b), n, traj.ts,
-                                           kinematics, models, piece_samples=piece_samples,
-                                           **fits):
+    for piece, result in compensate_pieces(servo, lambda a, b: _slice(traj, a, b), n, traj.ts,
+                                           piece_samples=piece_samples, **fits):
         q[piece.keep_start:piece.keep_stop] = result.trajectory.q
         before.append(result.before)
         after.append(result.after)

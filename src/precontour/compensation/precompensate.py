@@ -24,7 +24,7 @@ from ..defaults import COMPENSATION_METHODS as METHODS
 from ..defaults import COMPENSATION_TOL_LINEAR, COMPENSATION_TOL_ROTARY
 from ..files import check_signals
 from ..prediction.contour import ContourErrors, ReferencePath
-from ..machine.drives import LinearErrorModel
+from ..machine.servo import Servo
 from ..trajectory.sampled import Trajectory
 from ..prediction.tracking import predict_tracking
 from .idle_axes import hold_idle_axes, hold_resting_axes
@@ -92,8 +92,7 @@ def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
     return q - prediction(traj_t)
 
 
-def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...], *,
-               method: str = "contour", iterations: int = 1, tol_linear: float | None = None,
+def compensate(servo: Servo, traj: Trajectory, *, method: str = "contour", iterations: int = 1, tol_linear: float | None = None,
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
                progress=None, min_passes: int = 0, machine_actual: MachineActual | None = None,
                learning_passes: int = DEFAULT_LEARNING_PASSES,
@@ -101,14 +100,16 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
                programmed_end: bool = True) -> CompensationResult:
     """Pre-compensate the axis commands of ``traj`` (which must carry its reference P, O).
 
+    One compensation of the whole trajectory at once; :func:`precontour.compensation.
+    compensate` is the entry that takes long programs, the limits and learning on draws.
+
     Parameters
     ----------
+    servo : Servo
+        The machine's kinematics (``forward``, ``inverse``) and the closed-loop error models
+        of its axes (:func:`~precontour.machine.servo.load_servo`).
     traj : Trajectory
         Reference commands with the reference tool path.
-    kinematics
-        The machine's kinematics (``forward``, ``inverse``).
-    models : tuple of 5 LinearErrorModel
-        Closed-loop error models of the axes.
     method : {"contour", "tracking"}
         Contour-error pre-compensation (spec section 6), or the baseline that adds the
         predicted axis tracking errors to the commands.
@@ -161,6 +162,7 @@ def compensate(traj: Trajectory, kinematics, models: tuple[LinearErrorModel, ...
         raise ValueError(f"iterations must be >= 1, got {iterations}")
     if not 0 <= min_passes <= iterations:
         raise ValueError(f"min_passes must be within 0..{iterations}, got {min_passes}")
+    kinematics, models = servo.kinematics, servo.models
     reference = reference or ReferencePath.from_trajectory(traj)
     t = traj.t
     tol_linear, tol_rotary = compensation_tolerances(tol_linear, tol_rotary)

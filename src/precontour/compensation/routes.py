@@ -138,8 +138,8 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
     if not isinstance(servo, Servo):
         raise InputError("compensate takes the servo first: compensate(load_servo(machine, "
                          "controller), trajectory, ...); the former compensate(trajectory, "
-                         "kinematics, models) is precontour.compensation.precompensate."
-                         "compensate", field="servo")
+                         "kinematics, models), one pass at once, is precontour.compensation."
+                         "precompensate.compensate(servo, trajectory)", field="servo")
     if method not in METHODS:
         raise InputError(f"unknown compensation method {method!r}; choose one of "
                          f"{', '.join(METHODS)}", field="method")
@@ -185,7 +185,7 @@ def compensate(servo: Servo, trajectory: Trajectory, *, method: str = "contour",
         machine_model = dict(machine_actual=ensemble_actual(trajectory.t, servo.machine,
                                                             learner, learning.ensemble),
                              learning_passes=passes, learning_progress=learning_progress)
-    result = compensate_program(trajectory, servo.kinematics, servo.models, progress=progress,
+    result = compensate_program(servo, trajectory, progress=progress,
                                 **fits, **machine_model)
     return Compensation(commands=result.trajectory, reference=trajectory, before=result.before,
                         after=result.after, passes=result.iterations, slowdowns=(),
@@ -229,20 +229,17 @@ def learn_on_ensemble(servo: Servo, limited: LimitedCompensation, passes: int, *
     """
     machine = servo.machine
     controller = servo.controller if controller is None else controller
-    kinematics, models, limits = servo.kinematics, servo.models, servo.limits
     if limited.reference.n_samples > AT_ONCE_SAMPLES:
         learned = learn_by_segments(
-            limited, kinematics, models, limits,
+            servo, limited,
             lambda t, start: ensemble_actual(t, machine, controller, ensemble, start=start),
-            passes,
-            progress=progress)
+            passes, progress=progress)
     else:
         actual = ensemble_actual(limited.reference.t, machine, controller, ensemble)
-        learned = learn_within_limits(limited, kinematics, models, limits, actual,
-                                      passes, progress=progress)
+        learned = learn_within_limits(servo, limited, actual, passes, progress=progress)
     if planned is None:
         return learned
-    return planned_if_uncompensated(learned, planned, kinematics, models, limits)
+    return planned_if_uncompensated(servo, learned, planned)
 
 
 def keep_limits(servo: Servo, trajectory: Trajectory, *, learn: int | LearningOptions = 0,
@@ -263,8 +260,7 @@ def keep_limits(servo: Servo, trajectory: Trajectory, *, learn: int | LearningOp
     # a final rest long enough for the corrections to taper to zero, so that the commands end
     # at the programmed end point (the controller holds the last command after them anyway)
     trajectory = with_final_rest(trajectory, required_final_rest(servo.models))
-    limited = compensate_within_limits(trajectory, servo.kinematics, servo.models,
-                                       servo.limits, progress=progress,
+    limited = compensate_within_limits(servo, trajectory, progress=progress,
                                        min_speed=limits.min_speed, method=method,
                                        iterations=iterations, tol_linear=tol_linear,
                                        tol_rotary=tol_rotary, pass_progress=pass_progress)

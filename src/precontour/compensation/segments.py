@@ -45,7 +45,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..trajectory.limits import AxisLimits, check_limits
+from ..machine.servo import Servo
+from ..trajectory.limits import check_limits
 from ..trajectory.sampled import Trajectory
 from .blocks import SUMMARY_KEYS, Fallback
 from .pieces import PIECE_SAMPLES, Piece, _slice, overlap_samples, plan_pieces
@@ -68,9 +69,8 @@ def plan_segments(reference: Trajectory, models, segment_samples: int = PIECE_SA
                        lambda a, b: reference.q[a:b], segment_samples, reference.ts)
 
 
-def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
-                      machine_of, passes: int, *, segment_samples: int = PIECE_SAMPLES,
-                      progress=None, update: str = "mean",
+def learn_by_segments(servo: Servo, limited: LimitedCompensation, machine_of, passes: int, *,
+                      segment_samples: int = PIECE_SAMPLES, progress=None, update: str = "mean",
                       local: bool = True) -> LimitedCompensation:
     """:func:`~.within_limits.learn_within_limits` of ``limited`` segment by segment (see the
     module docstring). ``machine_of(t, start)`` gives the machine model at the times ``t`` of
@@ -81,6 +81,7 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
     :func:`~.stops.learn_at_stops`. ``progress(label, summary)`` after each
     command tried, the label prefixed with the segment. ``result.learning`` joins the
     segments' reports (:func:`join_reports`)."""
+    models, limits = servo.models, servo.limits
     reference = limited.reference
     n, ts = reference.n_samples, reference.ts
     line = limited.line
@@ -108,7 +109,7 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
         settle_delays = SETTLE_DELAYS if piece.keep_stop >= n else ()
         label = f"segment {k + 1}/{len(segments)}: "
         q_kept, report = learn_commands(
-            part, q_start, kinematics, models, limits, machine_of(part.t, a), passes,
+            servo, part, q_start, machine_of(part.t, a), passes,
             line=None if line is None else line[a:b],
             progress=None if progress is None else
             (lambda text, summary, label=label: progress(label + text, summary)),
@@ -117,7 +118,7 @@ def learn_by_segments(limited: LimitedCompensation, kinematics, models, limits: 
         q[a:b] = q_kept if project is None else project(q_kept)
         reports.append((report, stop - first, b - a, label))
     report = join_reports(reports, n)
-    after = _predicted(reference.with_axes(q), models, {}, kinematics).contour
+    after = _predicted(servo, reference.with_axes(q), {}, contour=True).contour
     result = replace(limited.result, trajectory=reference.with_axes(q), after=after,
                      learning=report,
                      iterations=0 if report.chosen == "uncompensated"

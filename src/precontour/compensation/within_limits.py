@@ -38,8 +38,9 @@ from scipy.ndimage import minimum_filter1d
 
 from ..defaults import DEFAULT_MIN_SPEED
 from ..errors import MachineLimitError, notice
+from ..machine.servo import Servo
 from ..trajectory.feedplan import CHECK_RTOL
-from ..trajectory.limits import AxisLimits, LimitCheck, check_limits
+from ..trajectory.limits import LimitCheck, check_limits
 from ..trajectory.retime import (Slowdown, held_through_stops, retime, slowdowns_of,
                                  stretch_reach)
 from ..trajectory.sampled import Trajectory
@@ -154,7 +155,7 @@ class LimitedCompensation:
         return float(sum(s.added for s in self.slowdowns))
 
 
-def compensate_within_limits(reference: Trajectory, kinematics, models, limits: AxisLimits, *,
+def compensate_within_limits(servo: Servo, reference: Trajectory, *,
                              line: np.ndarray | None = None, max_rounds: int = MAX_ROUNDS,
                              progress=None, splice: bool = True, min_speed: float = MIN_SPEED,
                              method: str = "contour", iterations: int = 1,
@@ -163,8 +164,8 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     """Compensate ``reference`` (with :func:`~.precompensate.compensate`: ``method``,
     ``iterations``, ``tol_linear``, ``tol_rotary``; ``pass_progress(pass, summary)`` after
     each pass of the first round), slowing it down locally and compensating again until the
-    commands keep ``limits``. ``line``: the source line of each sample where ``reference``
-    does not carry them itself (they travel with it through every re-timing).
+    commands keep the servo's limits. ``line``: the source line of each sample where
+    ``reference`` does not carry them itself (they travel with it through every re-timing).
 
     The first round compensates the whole reference. After a re-timing, ``splice=True``
     compensates again only around the slowed windows and splices the result into the
@@ -178,6 +179,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     """
     if not 0.0 < min_speed <= 1.0:
         raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
+    limits = servo.limits
     options = dict(method=method, iterations=iterations, tol_linear=tol_linear,
                    tol_rotary=tol_rotary)
     ts = reference.ts
@@ -195,7 +197,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     first_check = None
     if progress is not None:
         progress(1, f"compensate ({current.n_samples} samples)")
-    result = compensate_program(current, kinematics, models, progress=pass_progress, **options)
+    result = compensate_program(servo, current, progress=pass_progress, **options)
     q = result.trajectory.q
     kinks, smoothed = [], []
     for round_ in range(1, max_rounds + 1):
@@ -207,7 +209,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
         first_check = first_check or check
         if not check.ok and method == "contour":
             # what kinks and rough corrections blend into: predicted at most once a round
-            tracking = cache(partial(_tracking, current, models, options))
+            tracking = cache(partial(_tracking, servo, current, options))
             q, windows = smooth_kinks(current, q, check, tracking)
             if windows:
                 kinks += [(t0 + to_original[a] * ts, t0 + to_original[b] * ts)
@@ -217,9 +219,9 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
                 # judged against the commands as they stand, their kinks smoothed: slowing
                 # down would start from these
                 predicted = result.after if q is result.trajectory.q else _predicted(
-                    current.with_axes(q), models, options, kinematics).contour
-                q, windows = smooth_instead_of_slowing(current, q, check, predicted,
-                                                       tracking, kinematics, models, options)
+                    servo, current.with_axes(q), options, contour=True).contour
+                q, windows = smooth_instead_of_slowing(servo, current, q, check, predicted,
+                                                       tracking, options)
                 if windows:
                     smoothed += [(t0 + a * ts, t0 + b * ts) for a, b in windows]
                     check = check_limits(q, ts, limits, t0=t0)
@@ -242,7 +244,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             # kinks smoothed in the first round (which kept the limits: the smoothed commands
             # are the ones that keep them)
             if round_ > 1 or floored.any() or q is not result.trajectory.q:
-                result = _result_for(current, q, result, kinematics, models, options)
+                result = _result_for(servo, current, q, result, options)
             return LimitedCompensation(
                 result=result, reference=current,
                 slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
@@ -276,11 +278,11 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
             progress(round_ + 1, f"compensate again ({current.n_samples} samples, "
                                  f"{len(retimed.slowdowns)} slowed window(s))")
         if splice:
-            q = splice_recompensation(current, retimed.old_index, q, kinematics, models,
+            q = splice_recompensation(servo, current, retimed.old_index, q,
                                       passes=result.iterations, method=method,
                                       tol_linear=tol_linear, tol_rotary=tol_rotary)
         else:
-            result = compensate_program(current, kinematics, models, **options)
+            result = compensate_program(servo, current, **options)
             q = result.trajectory.q
     # Slowing down no longer helps where a correction has a kink (its jerk does not fall when
     # the motion slows): there the commands go back to the planned ones, which keep the limits.
@@ -290,7 +292,7 @@ def compensate_within_limits(reference: Trajectory, kinematics, models, limits: 
     if not final.ok:
         raise MachineLimitError(f"the compensated commands still exceed the machine's limits "
                                 f"after {max_rounds} compensation round(s): {check.format()}")
-    result = _result_for(current, tapered, result, kinematics, models, options)
+    result = _result_for(servo, current, tapered, result, options)
     return LimitedCompensation(
         result=result, reference=current,
         slowdowns=slowdowns_of(to_original, ts, t0=t0, line=original_line),
@@ -320,12 +322,12 @@ def _merged(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ..
     return tuple((float(a), float(b)) for a, b in out)
 
 
-def _tracking(reference: Trajectory, models, options) -> np.ndarray:
+def _tracking(servo: Servo, reference: Trajectory, options) -> np.ndarray:
     """Axis tracking-error pre-compensation of ``reference``: each command plus its own
     predicted tracking error (spec section 7's baseline), ending at the programmed end point
     (:func:`~.programmed_end.end_at_programmed_end`), so that blends into it keep the end."""
-    return end_at_programmed_end(reference.q, reference.q + _predicted(reference, models,
-                                                                       options).e,
+    return end_at_programmed_end(reference.q,
+                                 reference.q + _predicted(servo, reference, options).e,
                                  reference.ts)
 
 
@@ -342,9 +344,9 @@ def smooth_kinks(reference: Trajectory, q: np.ndarray, check: LimitCheck,
     return taper_corrections(tracking(), q, kinks, reference.ts)
 
 
-def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: LimitCheck,
-                              predicted, tracking: Callable[[], np.ndarray], kinematics,
-                              models, options) -> tuple[np.ndarray, list[tuple[int, int]]]:
+def smooth_instead_of_slowing(servo: Servo, reference: Trajectory, q: np.ndarray,
+                              check: LimitCheck, predicted, tracking: Callable[[], np.ndarray],
+                              options) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """Commands ``q`` (compensated on ``reference``, predicted contour errors ``predicted``)
     blended into axis tracking-error pre-compensation (``tracking()``, :func:`_tracking`)
     around the samples over a limit in
@@ -364,7 +366,7 @@ def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: Limit
         return q, []
     ts = reference.ts
     blended, _ = taper_corrections(tracking(), q, over, ts)
-    after = _predicted(reference.with_axes(blended), models, options, kinematics).contour
+    after = _predicted(servo, reference.with_axes(blended), options, contour=True).contour
     # the windows where the blend changes the commands
     weight, _ = taper_weight(over, ts)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], (weight > 0).astype(np.int8), [0]])))
@@ -380,26 +382,27 @@ def smooth_instead_of_slowing(reference: Trajectory, q: np.ndarray, check: Limit
     return taper_corrections(tracking(), q, over & keep, ts)
 
 
-def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits: AxisLimits,
+def learn_within_limits(servo: Servo, limited: LimitedCompensation,
                         machine_actual: MachineActual, passes: int, *,
                         progress=None, update: str = "mean",
                         local: bool = True) -> LimitedCompensation:
     """``limited`` improved by ``passes`` passes of learning against the nonlinear machine
     model ``machine_actual`` (:func:`~.stops.learn_at_stops`, from its commands on its
     reference; one machine, or better an ensemble of draws of it,
-    :func:`precontour.simulation.ensemble_actual`), keeping only commands within ``limits``:
+    :func:`precontour.simulation.ensemble_actual`), keeping only commands within the servo's
+    limits:
     each learning update and each settling is smoothed (:data:`~.stops.LIMITED_SMOOTHING`)
     and a command beyond a limit is not kept; nowhere worse than the uncompensated command on
     every draw, in whole and block by block (each source line of ``limited.line``, else
     windows), falling back locally to axis tracking-error pre-compensation or the planned
     command where needed (:mod:`.blocks`). ``update``, ``local``: as for
     :func:`~.stops.learn_at_stops`. ``result.learning`` reports what was tried and kept."""
+    kinematics, models, limits = servo.kinematics, servo.models, servo.limits
     reference = limited.reference
     q_start = limited.result.trajectory.q
     path = ReferencePath.from_trajectory(reference)
-    q, report = learn_commands(reference, q_start, kinematics, models, limits, machine_actual,
-                               passes, progress=progress, path=path, update=update,
-                               local=local)
+    q, report = learn_commands(servo, reference, q_start, machine_actual, passes,
+                               progress=progress, path=path, update=update, local=local)
     result = replace(limited.result, learning=report)
     if q is not q_start:
         after = contour_errors(path, predicted_actual(reference.t, q, models), kinematics)
@@ -409,8 +412,8 @@ def learn_within_limits(limited: LimitedCompensation, kinematics, models, limits
                    check=check_limits(q, reference.ts, limits, t0=float(reference.t[0])))
 
 
-def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, kinematics,
-                             models, limits: AxisLimits) -> LimitedCompensation:
+def planned_if_uncompensated(servo: Servo, limited: LimitedCompensation,
+                             planned: Trajectory) -> LimitedCompensation:
     """``limited`` as learning left it; but where learning kept the uncompensated command
     everywhere (``result.learning.chosen``), the planned trajectory ``planned`` (the one
     ``limited`` was compensated from) as it was planned: its slow-downs were made for the
@@ -420,13 +423,13 @@ def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, 
     learning = limited.result.learning
     if learning is None or learning.chosen != "uncompensated" or not limited.slowdowns:
         return limited
-    check = check_limits(planned.q, planned.ts, limits, t0=float(planned.t[0]))
+    check = check_limits(planned.q, planned.ts, servo.limits, t0=float(planned.t[0]))
     if not check.ok:
         return limited
     notice(f"learning kept the uncompensated commands everywhere: the "
            f"{len(limited.slowdowns)} slow-down(s) made for the corrections are dropped "
            f"({limited.added_time:.3g} s)")
-    errors = _predicted(planned, models, {}, kinematics).contour
+    errors = _predicted(servo, planned, {}, contour=True).contour
     result = replace(limited.result, trajectory=planned, before=errors, after=errors,
                      iterations=0)
     return replace(limited, result=result, reference=planned, slowdowns=(),
@@ -434,8 +437,8 @@ def planned_if_uncompensated(limited: LimitedCompensation, planned: Trajectory, 
                    uncompensated=(), kinks=(), smoothed=())
 
 
-def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, models,
-                   limits: AxisLimits, machine_actual: MachineActual, passes: int, *,
+def learn_commands(servo: Servo, reference: Trajectory, q_start: np.ndarray,
+                   machine_actual: MachineActual, passes: int, *,
                    line: np.ndarray | None = None, progress=None,
                    scored: tuple[int, int] | None = None, project=None,
                    path: ReferencePath | None = None, update: str = "mean", local: bool = True,
@@ -458,6 +461,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     over the final rest (:func:`~.programmed_end.end_at_programmed_end`; False for an earlier
     segment).
     """
+    kinematics, limits = servo.kinematics, servo.limits
     ts, t0 = reference.ts, float(reference.t[0])
     line = reference.line if line is None else line
     path = ReferencePath.from_trajectory(reference) if path is None else path
@@ -495,7 +499,7 @@ def learn_commands(reference: Trajectory, q_start: np.ndarray, kinematics, model
     def hold_resting(q):
         return hold_resting_axes(reference.q, q, idle_tolerance)
 
-    tracking = hold(reference.q + _predicted(reference, models, {}).e)
+    tracking = hold(reference.q + _predicted(servo, reference, {}).e)
     tracking = project(ended(tracking) if programmed_end else tracking)
     problem = LearningProblem(reference.q, ts, machine, errors_of,
                               learning_step(reference, path, kinematics, hold=hold),
@@ -547,8 +551,8 @@ def decay_time(models) -> float:
     return float(np.log(1.0 / SPLICE_DECAY) / slowest)
 
 
-def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previous: np.ndarray,
-                          kinematics, models, *, passes: int, method: str = "contour",
+def splice_recompensation(servo: Servo, reference: Trajectory, old_index: np.ndarray,
+                          q_previous: np.ndarray, *, passes: int, method: str = "contour",
                           tol_linear: float | None = None,
                           tol_rotary: float | None = None) -> np.ndarray:
     """Compensated commands for a re-timed ``reference``, computing only around its slowed
@@ -573,7 +577,7 @@ def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previo
     slow = np.diff(old_index) < 1.0 - 1e-9
     if not slow.any():
         return q
-    L, G, B, E = (int(np.ceil(x / ts)) for x in (decay_time(models), SPLICE_LOOKAHEAD,
+    L, G, B, E = (int(np.ceil(x / ts)) for x in (decay_time(servo.models), SPLICE_LOOKAHEAD,
                                                    SPLICE_BLEND, SPLICE_END))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
     starts, ends = edges[::2], edges[1::2]          # window samples a .. b (b = end index)
@@ -591,7 +595,7 @@ def splice_recompensation(reference: Trajectory, old_index: np.ndarray, q_previo
         part = slice(lo_k, hi_k + 1)
         sub = Trajectory(t=reference.t[part], q=reference.q[part], P=reference.P[part],
                          O=reference.O[part])
-        new = compensate(sub, kinematics, models, method=method, iterations=passes,
+        new = compensate(servo, sub, method=method, iterations=passes,
                          min_passes=passes, tol_linear=tol_linear, tol_rotary=tol_rotary,
                          # only the stretch that reaches the program's end ends where it does
                          programmed_end=hi_k == n - 1).trajectory.q
@@ -609,24 +613,24 @@ def _ramp(x: np.ndarray) -> np.ndarray:
     return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
 
 
-def _result_for(reference: Trajectory, q: np.ndarray, last: CompensationResult, kinematics,
-                models, options) -> CompensationResult:
+def _result_for(servo: Servo, reference: Trajectory, q: np.ndarray, last: CompensationResult,
+                options) -> CompensationResult:
     """The CompensationResult of spliced commands: predicted contour errors before and after
     on the whole re-timed reference."""
-    before = _predicted(reference, models, options, kinematics).contour
-    after = _predicted(reference.with_axes(q), models, options, kinematics).contour
+    before = _predicted(servo, reference, options, contour=True).contour
+    after = _predicted(servo, reference.with_axes(q), options, contour=True).contour
     return CompensationResult(trajectory=reference.with_axes(q), before=before, after=after,
                               iterations=last.iterations,
                               history=(before.summary(), after.summary()), method=last.method)
 
 
-def _predicted(traj: Trajectory, models, options, kinematics=None):
+def _predicted(servo: Servo, traj: Trajectory, options, contour: bool = False):
     """Prediction of ``traj`` at the compensation's fit tolerances, whole up to
     :data:`~.pieces.AT_ONCE_SAMPLES` samples and in overlapping pieces above, so that a long
-    program's re-timing rounds stay in bounded memory (with ``kinematics``, also its contour
+    program's re-timing rounds stay in bounded memory (``contour``: also its contour
     errors)."""
     tol_linear, tol_rotary = compensation_tolerances(options.get("tol_linear"),
                                                      options.get("tol_rotary"))
     return predict_program(
-        traj if kinematics is not None else Trajectory(t=traj.t, q=traj.q), models, kinematics,
+        servo, traj if contour else Trajectory(t=traj.t, q=traj.q),
         tol_linear=tol_linear, tol_rotary=tol_rotary)

@@ -42,6 +42,7 @@ from ..defaults import DEFAULT_FEED_SCALE_MIN
 from ..errors import InputError, MachineLimitError
 from ..prediction.contour import ContourErrors
 from ..trajectory.feedplan import CHECK_RTOL
+from ..machine.servo import Servo
 from ..trajectory.limits import AxisLimits, check_limits
 from ..trajectory.retime import SPREAD_TIME, Slowdown, retime, slowdowns_of
 from ..trajectory.sampled import Trajectory
@@ -387,21 +388,19 @@ def _keep_limits(traj: Trajectory, index: np.ndarray, limits: AxisLimits):
     return traj, index
 
 
-def search_feed(planned: Trajectory, machine, controller: str, tolerance: ContourTolerance, *,
-                compensate: bool, models=None, limits: AxisLimits | None = None,
-                line: np.ndarray | None = None, min_speed: float = DEFAULT_FEED_SCALE_MIN,
+def search_feed(servo: Servo, planned: Trajectory, tolerance: ContourTolerance, *,
+                compensate: bool, line: np.ndarray | None = None, min_speed: float = DEFAULT_FEED_SCALE_MIN,
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
                 refine=None, exempt_lines=None, progress=None,
                 iterations: int = 1) -> FeedSearch:
     """The fastest local retiming of ``planned`` whose contour errors keep ``tolerance`` on
-    the realistic virtual machine of ``machine`` running ``controller``; see the module
-    docstring.
+    the realistic virtual machine of the servo's machine running its controller; see the
+    module docstring.
 
-    ``compensate``: pre-compensate the commands within ``limits`` (default the machine's) on
-    each timing, with the error models ``models`` (default the controller's), up to
-    ``iterations`` passes (:func:`~precontour.compensation.within_limits.
+    ``compensate``: pre-compensate the commands within the servo's limits on each timing,
+    with its error models, up to ``iterations`` passes (:func:`~precontour.compensation.within_limits.
     compensate_within_limits`, whose own slow-down floor is ``limits_min_speed``); False:
     the commands are the
     reference itself (kept within the limits). ``min_speed``: the lowest speed, a fraction
@@ -417,10 +416,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
     within the limits raises."""
     if not 0.0 < min_speed <= 1.0:
         raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
-    if limits is None:
-        limits = AxisLimits.from_machine(machine)
-    if compensate and models is None:
-        models = machine.error_models(controller)
+    machine, controller, limits = servo.machine, servo.controller, servo.limits
     if line is not None:
         # the lines given travel with the trajectory (and through its re-timings)
         planned = replace(planned, line=np.asarray(line))
@@ -441,8 +437,7 @@ def search_feed(planned: Trajectory, machine, controller: str, tolerance: Contou
             if progress is not None:
                 progress(f"compensated, round {round_}: compensate "
                          f"({current.n_samples} samples)")
-            limited = compensate_within_limits(current, machine.kinematics, models, limits,
-                                               min_speed=limits_min_speed,
+            limited = compensate_within_limits(servo, current, min_speed=limits_min_speed,
                                                iterations=iterations)
             index = np.interp(limited.planned_index, np.arange(current.n_samples), index)
             current = limited.reference
@@ -592,12 +587,11 @@ def _misses(traj: Trajectory, errors: ContourErrors, tolerance: ContourTolerance
     return tuple(sorted(found, key=lambda m: -m.error / m.limit))
 
 
-def feed_within_tolerance(planned: Trajectory, machine, controller: str,
-                          tolerance: ContourTolerance, *, programmed: Trajectory | None = None,
+def feed_within_tolerance(servo: Servo, planned: Trajectory, tolerance: ContourTolerance, *,
+                          programmed: Trajectory | None = None,
                           feed_scale_max: float = 1.0, min_speed: float | None = None,
                           line: np.ndarray | None = None, ensemble: MachineEnsemble | None = None,
-                          refine=None, exempt_lines=None, progress=None, models=None,
-                          limits: AxisLimits | None = None,
+                          refine=None, exempt_lines=None, progress=None,
                           limits_min_speed: float = MIN_SPEED, iterations: int = 1,
                           where: str = "line", max_rounds: int = MAX_ROUNDS
                           ) -> FeedWithinTolerance:
@@ -607,13 +601,13 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     ``min_speed``: the lowest speed as a fraction of ``planned``'s (default
     :data:`~precontour.defaults.DEFAULT_FEED_SCALE_MIN` of the programmed feed, i.e. that
     over ``feed_scale_max``). ``refine``: the compensated search's, ``exempt_lines``: both
-    searches' and the programmed errors'; ``models``, ``limits``, ``limits_min_speed``,
+    searches' and the programmed errors'; ``limits_min_speed``,
     ``iterations``, ``where``, ``max_rounds``: both searches' (:func:`search_feed`)."""
     programmed = planned if programmed is None else programmed
     # both plans with the final rest the compensated commands need to end at the programmed
     # end point (:mod:`~..compensation.programmed_end`; ``run`` plans it already)
-    rest = required_final_rest(machine.error_models(controller)
-                               if models is None else models)
+    machine, controller = servo.machine, servo.controller
+    rest = required_final_rest(servo.models)
     n = planned.n_samples
     planned, programmed = with_final_rest(planned, rest), with_final_rest(programmed, rest)
     if line is not None and len(line) == n < planned.n_samples:
@@ -625,11 +619,10 @@ def feed_within_tolerance(planned: Trajectory, machine, controller: str,
     programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
                                  programmed.line, exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
-                  exempt_lines=exempt_lines, models=models, limits=limits,
-                  limits_min_speed=limits_min_speed, iterations=iterations, where=where,
+                  exempt_lines=exempt_lines, limits_min_speed=limits_min_speed, iterations=iterations, where=where,
                   max_rounds=max_rounds)
-    baseline = search_feed(planned, machine, controller, tolerance, compensate=False, **common)
-    compensated = search_feed(planned, machine, controller, tolerance, compensate=True,
+    baseline = search_feed(servo, planned, tolerance, compensate=False, **common)
+    compensated = search_feed(servo, planned, tolerance, compensate=True,
                               refine=refine, **common)
     return FeedWithinTolerance(tolerance=tolerance, programmed=programmed,
                                programmed_errors=programmed_errors, planned=planned,

@@ -29,6 +29,7 @@ from ..machine.drives import AXES, ROTARY_AXES
 from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
+from ..machine.servo import load_servo
 from ..simulation.virtual_machine import SimulationResult, simulate_trajectory
 from ..tables import check_reference, read_trajectory
 from ..trajectory.sampled import Trajectory
@@ -617,12 +618,12 @@ def compute_compare(out_dir: str | Path, *, builtin: str | None = None,
     if sliding:
         runs[(sliding, "none")] = measure(sliding, "none", traj)
     for name in linear:
-        models = machine.error_models(controllers[name])
+        servo = load_servo(machine, controllers[name])
         runs[(name, "none")] = measure(name, "none", traj)
         comps = {}
         for kind, passes in (("tracking", 1), ("contour", iterations)):
             step(f"{name}: {kind} pre-compensation")
-            comps[kind] = compensate(traj, machine.kinematics, models, method=kind,
+            comps[kind] = compensate(servo, traj, method=kind,
                                      iterations=passes, min_passes=1, reference=reference)
             runs[(name, kind)] = measure(name, kind, comps[kind].trajectory, comps[kind])
         spectra[name] = compensation_spectrum(name, traj, comps["tracking"].trajectory,

@@ -25,6 +25,7 @@ from ..prediction.contour import ContourErrors, ReferencePath, contour_errors
 from ..errors import InputError, is_whole_number, plain
 from ..files import check_report_folder, input_files
 from ..machine.machine_file import Machine, load_machine
+from ..machine.servo import load_servo
 from ..simulation.virtual_machine import REALISTIC, SimulationResult, simulate_trajectory
 from ..machine.controllers import closed_loop_bandwidth
 from ..prediction.tracking import AxisPrediction, predict_tracking
@@ -170,8 +171,7 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
     machine_file = machine
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
-    models = {name: machine.error_models(name)
-              for name in controllers}
+    servos = {name: load_servo(machine, name) for name in controllers}
     out_dir = check_report_folder(
         out_dir, demo_file_names(paths, controllers).values(),
         inputs=[] if isinstance(machine_file, Machine) else input_files(machine_file),
@@ -189,13 +189,14 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
         # point (both controllers judged on the same plan)
         traj = with_final_rest(generate_trajectory(builtin_path(path), machine,
                                                    ts=machine.servo_period),
-                               max(required_final_rest(models[name]) for name in controllers))
+                               max(required_final_rest(servos[name].models)
+                                   for name in controllers))
         summaries[path] = summarize(traj, machine)
         reference = ReferencePath.from_trajectory(traj)
         for name in controllers:
             step(f"{path} {name}: predict and pre-compensate")
-            prediction = predict_tracking(traj.t, traj.q, models[name])
-            comp = compensate(traj, machine.kinematics, models[name], method="contour",
+            prediction = predict_tracking(traj.t, traj.q, servos[name].models)
+            comp = compensate(servos[name], traj, method="contour",
                               iterations=iterations, reference=reference)
             commands = {"uncompensated": traj, "pre-compensated": comp.trajectory}
             runs = {}
@@ -209,7 +210,7 @@ def compute_demo(out_dir: str | Path, *, paths: tuple[str, ...] = ("paper",),
             cases.append(CaseResult(path=path, controller=name, trajectory=traj,
                                     prediction=prediction, compensation=comp, runs=runs))
     computed = time.perf_counter()
-    bandwidths = {name: np.array([closed_loop_bandwidth(m) for m in models[name]])
+    bandwidths = {name: np.array([closed_loop_bandwidth(m) for m in servos[name].models])
                   for name in controllers}
     timings = {"compute": computed - start}
     result = DemoResult(out_dir=out_dir, machine=machine, paths=paths, controllers=controllers,

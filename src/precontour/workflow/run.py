@@ -146,7 +146,6 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     # is the first thing said
     machine_obj = load_machine(machine)
     servo = load_servo(machine_obj, controller)
-    models = servo.models
     source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
                               max_samples=max_samples, format=format,
                               tool_table=tool_table)
@@ -163,7 +162,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                                             max_samples=max_samples)
     # a final rest long enough for the corrections to taper to zero (the compensated program
     # ends at its programmed end point): the controller holds the last command anyway
-    end_rest = required_final_rest(models)
+    end_rest = required_final_rest(servo.models)
     as_planned = planned.n_samples
     planned = with_final_rest(planned, end_rest)
     final_rest_added = (planned.n_samples - as_planned) * planned.ts
@@ -171,15 +170,13 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     timings["plan"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    axis_limits = servo.limits
 
     def round_progress(round_: int, message: str) -> None:
         step(1, f"{message}, round {round_}")
 
     feed = None
     if contour_tolerance is None:
-        limited = compensate_within_limits(planned, machine_obj.kinematics, models,
-                                           axis_limits, iterations=iterations,
+        limited = compensate_within_limits(servo, planned, iterations=iterations,
                                            progress=round_progress, min_speed=min_speed)
         timings["compensate"] = time.perf_counter() - start
     else:
@@ -200,12 +197,11 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
 
         refine = learned if learn and can_learn(servo, planned) else None
         feed = feed_within_tolerance(
-            planned, machine_obj, controller, contour_tolerance, programmed=programmed,
+            servo, planned, contour_tolerance, programmed=programmed,
             refine=refine, exempt_lines=_rapid_lines(source),
             feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
-            progress=lambda message: step(1, message), models=models, limits=axis_limits,
-            limits_min_speed=min_speed, iterations=iterations,
+            progress=lambda message: step(1, message), limits_min_speed=min_speed, iterations=iterations,
             where="line" if source.format == "gcode" else "row")
         timings["feed within tolerance"] = time.perf_counter() - start
         found = feed.compensated
