@@ -22,15 +22,20 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+#: A result's methods that present it: the report stage's work, reached lazily.
+PRESENTING = ("plot", "table")
+
+
 def _plot_methods_drawing(tree: ast.AST) -> set[int]:
-    """ids of the import nodes inside a result's ``plot`` method that import the report stage:
-    drawing is the last stage's, and a result's ``.plot()`` reaches it lazily (as pandas'
-    ``.plot`` does); the one allowed import of a later stage."""
+    """ids of the import nodes inside a result's ``plot`` or ``table`` method that import the
+    report stage: figures and tables are the last stage's, and a result's ``.plot()`` or
+    ``.table()`` reaches it lazily (as pandas' ``.plot`` does); the one allowed import of a
+    later stage."""
     allowed = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.ClassDef):
             for item in node.body:
-                if isinstance(item, ast.FunctionDef) and item.name == "plot":
+                if isinstance(item, ast.FunctionDef) and item.name in PRESENTING:
                     allowed.update(id(n) for n in ast.walk(item)
                                    if isinstance(n, ast.ImportFrom) and n.level
                                    and (n.module or "").startswith("reports"))
@@ -190,3 +195,24 @@ def test_the_entry_points_reach_only_the_stages_entries():
     (workflow, batch, cnc, cli) and no feed search (planning)."""
     reached = {_stage(t) for t in _imports(MODULES["precontour.system"])}
     assert not reached & {"workflow", "batch", "cnc", "cli", "planning", "options"}, reached
+
+
+def test_the_command_line_scripts_and_benchmarks_import_no_private_module():
+    """The command line, the measurement scripts and the benchmarks use what users can use:
+    no precontour module or name whose name starts with an underscore (``__version__``
+    aside)."""
+    root = PACKAGE.parent.parent
+    files = [*(PACKAGE / "cli").rglob("*.py"), *(root / "scripts").glob("*.py"),
+             *(root / "benchmarks").glob("*.py")]
+    assert len(files) > 10
+    private = []
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith(
+                    "precontour")):
+                module = node.module or ""
+                names = [a.name for a in node.names]
+                if any(part.startswith("_") for part in module.split(".")) or any(
+                        name.startswith("_") and not name.endswith("__") for name in names):
+                    private.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert not private, private

@@ -167,3 +167,36 @@ def test_the_former_calls_give_what_the_servo_first_ones_give(servo, paper):
     with pytest.raises(InputError, match="servo first.*precompensate.compensate") as error:
         compensation.compensate(paper, servo.kinematics)
     assert "\n" not in str(error.value)
+
+
+def test_every_job_result_summarises_and_plots_itself(servo, paper, tmp_path):
+    """predict, simulate and run give results with summary() and plot(), like compensate's:
+    the summaries are the peaks of their own errors, computed here again; the figures draw
+    those errors against the results' times."""
+    from precontour.machine.drives import TrackingSummary
+    from precontour.workflow import run_program
+
+    predicted = predict(servo, paper)
+    summary = predicted.summary()
+    assert isinstance(summary, TrackingSummary) and summary.axis_names == servo.axis_names
+    peak = np.abs(predicted.e).max(axis=0)
+    assert summary["X"] == pytest.approx(1e3 * peak[0]) and summary["C"] == \
+        pytest.approx(1e6 * peak[4])
+    fig = predicted.plot()
+    assert len(fig.axes) == 4                      # linear, rotary, tip, orientation
+    np.testing.assert_array_equal(fig.axes[0].get_lines()[1].get_ydata(), 1e3 * predicted.e[:, 1])
+    np.testing.assert_array_equal(fig.axes[1].get_lines()[0].get_xdata(), paper.t)
+    sim = simulate(servo, paper)
+    assert sim.summary().max_abs == TrackingSummary.of(paper.q - sim.q_act).max_abs
+    assert len(sim.plot().axes) == 2
+    program = tmp_path / "paper.csv"
+    np.savetxt(program, np.column_stack([paper.P[::50], paper.O[::50]]), delimiter=",",
+               header="Px,Py,Pz,Oi,Oj,Ok", comments="")
+    result = run_program(program, machine="zhang2013", controller="pid-high", draws=1)
+    headline = result.summary()
+    assert headline.after == result.simulated_after.summary()
+    assert headline.reduction() == pytest.approx(
+        1 - result.simulated_after.tip.max() / result.simulated_before.tip.max())
+    assert headline.lines_worse == len(result.worse_lines())
+    assert result.plot().axes
+    assert result.table().startswith("contour errors")

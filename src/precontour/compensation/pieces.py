@@ -24,7 +24,7 @@ from math import ceil, log
 import numpy as np
 
 from ..defaults import DEFAULT_LEARNING_PASSES
-from ..machine.drives import LinearErrorModel
+from ..machine.drives import AXES, LinearErrorModel, TrackingSummary
 from ..machine.servo import Servo
 from ..parallel import map_ordered
 from ..prediction.contour import (DEFAULT_WINDOW, MAX_WINDOW_FACTOR, ContourErrors,
@@ -128,22 +128,57 @@ def _slice(traj: Trajectory, start: int, stop: int) -> Trajectory:
 
 @dataclass(frozen=True)
 class ProgramPrediction:
-    """Predicted tracking errors (and contour errors where the reference is known) of a whole
-    program, and the knots each axis needed (summed over the pieces)."""
+    """What ``predict`` gives: the predicted tracking errors (and contour errors where the
+    reference is known) of a whole program, and the knots each axis needed.
+
+    Attributes
+    ----------
+    e : ndarray, shape (N, 5)
+        Tracking errors of the axes, mm and rad (spec section 4).
+    contour : ContourErrors or None
+        Contour errors of the predicted actual motion (None: no reference).
+    n_knots : tuple of int
+        Spline knots each axis's fit needed (summed over the pieces).
+    pieces : int
+        Pieces the program was predicted in (1: at once).
+    t : ndarray, shape (N,), or None
+        Sample times, s.
+    axis_names : tuple of str
+        The machine's letters of the five slots.
+    """
 
     e: np.ndarray
     contour: ContourErrors | None
     n_knots: tuple[int, ...]
     pieces: int
+    t: np.ndarray | None = None
+    axis_names: tuple[str, ...] = AXES
 
     @property
     def max_abs_error(self) -> np.ndarray:
         """max |e| of each axis over the program, shape (5,)."""
         return np.abs(self.e).max(axis=0)
 
+    def summary(self) -> TrackingSummary:
+        """The largest tracking error of each axis (um, urad); the contour errors' own:
+        ``contour.summary()``."""
+        return TrackingSummary.of(self.e, self.axis_names)
 
-def predict_pieces(servo: Servo, read, n_samples: int, ts: float, *, tol_linear: float | None = None,
-                   tol_rotary: float | None = None, piece_samples: int = PIECE_SAMPLES):
+    def plot(self, axes=None):
+        """The predicted tracking errors against time (and the contour errors where the
+        reference is known; :func:`precontour.reports.plots.plot_tracking_errors`); returns
+        the figure."""
+        from ..reports.plots import plot_tracking_errors
+
+        t = np.arange(self.e.shape[0], dtype=float) if self.t is None else self.t
+        return plot_tracking_errors(t, self.e, axis_names=self.axis_names,
+                                    contour=self.contour, axes=axes,
+                                    title="predicted tracking errors")
+
+
+def predict_pieces(servo: Servo, read, n_samples: int, ts: float, *,
+                   tol_linear: float | None = None, tol_rotary: float | None = None,
+                   piece_samples: int = PIECE_SAMPLES):
     """Predict a program given only ``read(start, stop) -> Trajectory`` of its samples, piece
     by piece; yields ``(piece, e, contour, n_knots)`` for the kept samples of each piece
     (``contour`` None without a reference). Memory is bounded by the piece size."""
@@ -170,8 +205,8 @@ def predict_pieces(servo: Servo, read, n_samples: int, ts: float, *, tol_linear:
     yield from map_ordered(one, pieces)
 
 
-def predict_program(servo: Servo, traj: Trajectory, *, tol_linear: float | None = None, tol_rotary: float | None = None,
-                    piece_samples: int = PIECE_SAMPLES,
+def predict_program(servo: Servo, traj: Trajectory, *, tol_linear: float | None = None,
+                    tol_rotary: float | None = None, piece_samples: int = PIECE_SAMPLES,
                     at_once_samples: int = AT_ONCE_SAMPLES) -> ProgramPrediction:
     """Tracking errors e(t) at every sample (and contour errors if ``traj`` has its
     reference), at once up to ``at_once_samples`` samples, in pieces above."""
@@ -181,15 +216,16 @@ def predict_program(servo: Servo, traj: Trajectory, *, tol_linear: float | None 
     knots = np.zeros(len(servo.models), dtype=np.int64)
     pieces = 0
     for piece, e_kept, contour, n_knots in predict_pieces(
-            servo, lambda a, b: _slice(traj, a, b), n, traj.ts, tol_linear=tol_linear, tol_rotary=tol_rotary,
-            piece_samples=n if n <= at_once_samples else piece_samples):
+            servo, lambda a, b: _slice(traj, a, b), n, traj.ts, tol_linear=tol_linear,
+            tol_rotary=tol_rotary, piece_samples=n if n <= at_once_samples else piece_samples):
         e[piece.keep_start:piece.keep_stop] = e_kept
         knots += n_knots
         pieces += 1
         if contour is not None:
             parts.append(contour)
     return ProgramPrediction(e=e, contour=_join(parts) if parts else None,
-                             n_knots=tuple(int(k) for k in knots), pieces=pieces)
+                             n_knots=tuple(int(k) for k in knots), pieces=pieces, t=traj.t,
+                             axis_names=servo.axis_names)
 
 
 def contour_errors_program(reference: Trajectory, q_act: np.ndarray, kinematics, *,
@@ -246,8 +282,9 @@ def compensate_pieces(servo: Servo, read, n_samples: int, ts: float, *,
     yield from map_ordered(one, pieces)
 
 
-def compensate_program(servo: Servo, traj: Trajectory, *, method: str = "contour", iterations: int = 1,
-                       tol_linear: float | None = None, tol_rotary: float | None = None,
+def compensate_program(servo: Servo, traj: Trajectory, *, method: str = "contour",
+                       iterations: int = 1, tol_linear: float | None = None,
+                       tol_rotary: float | None = None,
                        min_passes: int = 0, hold_idle: bool = True, progress=None,
                        machine_actual=None, learning_passes: int = DEFAULT_LEARNING_PASSES,
                        learning_progress=None, piece_samples: int = PIECE_SAMPLES,

@@ -92,7 +92,8 @@ def predicted_actual(traj_t: np.ndarray, q: np.ndarray, models, tol_linear=None,
     return q - prediction(traj_t)
 
 
-def compensate(servo: Servo, traj: Trajectory, *, method: str = "contour", iterations: int = 1, tol_linear: float | None = None,
+def compensate(servo: Servo, traj: Trajectory, *, method: str = "contour",
+               iterations: int = 1, tol_linear: float | None = None,
                tol_rotary: float | None = None, reference: ReferencePath | None = None,
                progress=None, min_passes: int = 0, machine_actual: MachineActual | None = None,
                learning_passes: int = DEFAULT_LEARNING_PASSES,

@@ -20,6 +20,41 @@ ROTARY_AXES: tuple[str, ...] = ("A", "C")
 
 
 @dataclass(frozen=True)
+class TrackingSummary:
+    """The largest tracking error of each axis, in um (slots 0-2, linear) and urad (slots
+    3-4, rotary): what ``predict`` and ``simulate`` results' ``summary()`` give.
+
+    Attributes
+    ----------
+    axis_names : tuple of str
+        The machine's letters of the five slots.
+    max_abs : tuple of float
+        max |e| of each axis, um or urad.
+    """
+
+    axis_names: tuple[str, ...]
+    max_abs: tuple[float, ...]
+
+    @classmethod
+    def of(cls, e: np.ndarray, axis_names=AXES) -> "TrackingSummary":
+        """The summary of tracking errors ``e`` (N, 5), mm and rad."""
+        peak = np.abs(np.asarray(e, dtype=float)).max(axis=0) * 1e3
+        peak[3:] *= 1e3
+        return cls(axis_names=tuple(axis_names), max_abs=tuple(float(v) for v in peak))
+
+    def units(self) -> tuple[str, ...]:
+        return ("um",) * 3 + ("urad",) * (len(self.max_abs) - 3)
+
+    def __getitem__(self, axis: str) -> float:
+        """max |e| of the axis named ``axis`` (its unit: :meth:`units`)."""
+        return self.max_abs[self.axis_names.index(axis)]
+
+    def format(self) -> str:
+        return ", ".join(f"{name} {value:.4g} {unit}" for name, value, unit
+                         in zip(self.axis_names, self.max_abs, self.units()))
+
+
+@dataclass(frozen=True)
 class Friction:
     """Stribeck-type friction torque at the motor, spec section 2 (paper Eq. 28, Table 2).
 

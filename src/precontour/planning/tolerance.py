@@ -389,7 +389,8 @@ def _keep_limits(traj: Trajectory, index: np.ndarray, limits: AxisLimits):
 
 
 def search_feed(servo: Servo, planned: Trajectory, tolerance: ContourTolerance, *,
-                compensate: bool, line: np.ndarray | None = None, min_speed: float = DEFAULT_FEED_SCALE_MIN,
+                compensate: bool, line: np.ndarray | None = None,
+                min_speed: float = DEFAULT_FEED_SCALE_MIN,
                 ensemble: MachineEnsemble | None = None, max_rounds: int = MAX_ROUNDS,
                 aim: float = AIM, exponent: float = EXPONENT,
                 limits_min_speed: float = MIN_SPEED, where: str = "line",
@@ -400,10 +401,10 @@ def search_feed(servo: Servo, planned: Trajectory, tolerance: ContourTolerance, 
     module docstring.
 
     ``compensate``: pre-compensate the commands within the servo's limits on each timing,
-    with its error models, up to ``iterations`` passes (:func:`~precontour.compensation.within_limits.
-    compensate_within_limits`, whose own slow-down floor is ``limits_min_speed``); False:
-    the commands are the
-    reference itself (kept within the limits). ``min_speed``: the lowest speed, a fraction
+    with its error models, up to ``iterations`` passes
+    (:func:`~precontour.compensation.within_limits.compensate_within_limits`, whose own
+    slow-down floor is ``limits_min_speed``); False: the commands are the reference itself
+    (kept within the limits). ``min_speed``: the lowest speed, a fraction
     of ``planned``'s, 0 < min_speed <= 1. ``ensemble``: the draws a timing that keeps the
     tolerance on the machine file's machine is checked on (None: that machine only).
     ``refine(limited) -> limited``, if given, improves each round's compensation on the same
@@ -619,8 +620,8 @@ def feed_within_tolerance(servo: Servo, planned: Trajectory, tolerance: ContourT
     programmed_errors = _counted(_measure(programmed, programmed.q, machine, controller, None),
                                  programmed.line, exempt_lines)
     common = dict(line=line, min_speed=min_speed, ensemble=ensemble, progress=progress,
-                  exempt_lines=exempt_lines, limits_min_speed=limits_min_speed, iterations=iterations, where=where,
-                  max_rounds=max_rounds)
+                  exempt_lines=exempt_lines, limits_min_speed=limits_min_speed,
+                  iterations=iterations, where=where, max_rounds=max_rounds)
     baseline = search_feed(servo, planned, tolerance, compensate=False, **common)
     compensated = search_feed(servo, planned, tolerance, compensate=True,
                               refine=refine, **common)

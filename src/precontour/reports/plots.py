@@ -2,7 +2,8 @@
 results plot themselves, and matplotlib stays in ``reports/``).
 
 :func:`plot_contour_errors` draws tool tip and orientation contour errors against time for
-any number of labelled :class:`~precontour.prediction.ContourErrors` on the same samples.
+any number of labelled :class:`~precontour.prediction.ContourErrors` on the same samples;
+:func:`plot_tracking_errors` the axes' tracking errors (linear in um, rotary in urad).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..machine.drives import AXES
 from ..prediction.contour import ContourErrors
 
 #: Colours of the labels, in order (uncompensated first, as in every report).
@@ -47,4 +49,40 @@ def plot_contour_errors(t: np.ndarray, errors: Mapping[str, ContourErrors], *,
         ax.grid(True, lw=0.3)
     if title:
         tip_ax.set_title(title, fontsize=10)
+    return fig
+
+
+def plot_tracking_errors(t: np.ndarray, e: np.ndarray, *, axis_names=AXES,
+                         contour: ContourErrors | None = None, title: str | None = None,
+                         axes=None):
+    """Tracking errors ``e`` (N, 5; mm, rad) against time ``t`` (s): the linear axes in um
+    (top), the rotary ones in urad (below), and, where ``contour`` is given, the tip and
+    orientation contour errors beneath. ``axes``: matplotlib axes to draw into, one per row
+    (default: a new figure). Returns the figure."""
+    t = np.asarray(t, dtype=float)
+    e = np.asarray(e, dtype=float)
+    if e.shape != (t.size, 5):
+        raise ValueError(f"tracking errors of shape {e.shape}, the times have {t.size}")
+    rows = 2 if contour is None else 4
+    if axes is None:
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(8.0, 2.5 * rows), layout="constrained")
+        axes = fig.subplots(rows, 1, sharex=True)
+    else:
+        fig = axes[0].figure
+    for ax, slots, scale, unit in ((axes[0], range(3), 1e3, "um"),
+                                   (axes[1], range(3, 5), 1e6, "urad")):
+        for i, colour in zip(slots, COLOURS):
+            ax.plot(t, scale * e[:, i], color=colour, lw=0.9,
+                    label=f"{axis_names[i]}: max |e| {scale * np.abs(e[:, i]).max():.3g} {unit}")
+        ax.set_ylabel(f"tracking error ({unit})")
+    if contour is not None:
+        plot_contour_errors(t, {"contour error": contour}, axes=axes[2:4])
+    axes[rows - 1].set_xlabel("time (s)")
+    for ax in axes[:2]:
+        ax.legend(fontsize=8, frameon=False)
+        ax.grid(True, lw=0.3)
+    if title:
+        axes[0].set_title(title, fontsize=10)
     return fig

@@ -32,7 +32,7 @@ from ._integrators import FF_SPEED_DEADBAND, _continuous_axis, _discrete_axis
 from .control_laws import LAWS, LawParameters
 from .closed_loop import CLOSED_LOOP_TYPES, simulate_closed_loop
 from ..machine.controllers import Controller
-from ..machine.drives import AXES, Drive
+from ..machine.drives import AXES, Drive, TrackingSummary
 from ..errors import InputError, UnsupportedControllerError, plain
 from ..parallel import jobs
 from ..machine.machine_file import Machine
@@ -80,6 +80,8 @@ class SimulationResult:
         Name of the controller that closed the loops.
     settings : dict
         The simulation options (friction, feed-forward, scales, encoder resolution, sub-steps).
+    axis_names : tuple of str
+        The machine's letters of the five slots.
     """
 
     t: np.ndarray
@@ -90,6 +92,7 @@ class SimulationResult:
     mode: str
     controller: str
     settings: dict = field(default_factory=dict)
+    axis_names: tuple[str, ...] = AXES
 
     @property
     def e(self) -> np.ndarray:
@@ -106,8 +109,21 @@ class SimulationResult:
         return self.t.size
 
     def axis(self, name: str) -> np.ndarray:
-        """Actual positions of one axis (``"X"`` ... ``"C"``), shape (N,)."""
-        return self.q_act[:, AXES.index(name)]
+        """Actual positions of one axis (one of :attr:`axis_names`), shape (N,)."""
+        return self.q_act[:, self.axis_names.index(name)]
+
+    def summary(self) -> TrackingSummary:
+        """The largest tracking error of each axis (um, urad)."""
+        return TrackingSummary.of(self.e, self.axis_names)
+
+    def plot(self, axes=None):
+        """The tracking errors against time, linear axes in um and rotary ones in urad
+        (:func:`precontour.reports.plots.plot_tracking_errors`); returns the figure."""
+        from ..reports.plots import plot_tracking_errors
+
+        return plot_tracking_errors(self.t, self.e, axis_names=self.axis_names, axes=axes,
+                                    title=f"simulated tracking errors, {self.controller}, "
+                                          f"{self.mode}")
 
     def to_trajectory(self) -> Trajectory:
         """The actual motion as a :class:`~precontour.trajectory.sampled.Trajectory` (no reference)."""
@@ -360,7 +376,8 @@ def _prepare(t, q, machine: Machine, controller: Controller | str, *, mode: str 
         w = np.gradient(q_act, ts, axis=0) / rg
         settings.update(closed_loop_model=True)
         done = SimulationResult(t=t, q_cmd=q, q_act=q_act, u=np.full_like(q, np.nan), w=w,
-                                mode=mode, controller=controller.name, settings=settings)
+                                mode=mode, controller=controller.name, settings=settings,
+                                axis_names=tuple(machine.axis_names))
         return _Job(run_axis=None, result=lambda: done)
 
     packer = LAWS.get(controller.type)
@@ -380,7 +397,8 @@ def _prepare(t, q, machine: Machine, controller: Controller | str, *, mode: str 
                                                   bool(ff_friction), substeps)
     return _Job(run_axis=run_axis,
                 result=lambda: SimulationResult(t=t, q_cmd=q, q_act=q_act, u=u, w=w, mode=mode,
-                                                controller=controller.name, settings=settings))
+                                                controller=controller.name, settings=settings,
+                                                axis_names=tuple(machine.axis_names)))
 
 
 def realistic_actual(t: np.ndarray, machine: Machine, controller: Controller | str):

@@ -10,8 +10,9 @@ table. ``export``: write an existing command file in one of those formats. Every
 location is checked before any computing, and nothing is written when a step fails.
 
 The parts: :mod:`.program` (the program read and planned), :mod:`.run` (the workflow's
-orchestration; compensating and learning are :mod:`precontour.compensation`'s), :mod:`.checks` (the virtual machine and its draws),
-:mod:`.result` (the outputs' locations and the result with its table), :mod:`.export` (writing).
+orchestration; compensating and learning are :mod:`precontour.compensation`'s),
+:mod:`.checks` (the virtual machine and its draws), :mod:`.result` (the outputs' locations
+and the result), :mod:`.export` (writing).
 """
 
 import warnings

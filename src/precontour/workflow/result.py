@@ -14,7 +14,7 @@ from ..compensation.within_limits import LimitedCompensation
 from ..files import OutputSet
 from ..machine.machine_file import Machine
 from ..planning.tolerance import FeedWithinTolerance
-from ..prediction.contour import ContourErrors
+from ..prediction.contour import ContourErrors, ErrorSummary
 from ..tables import SUPPORTED_SUFFIXES
 from ..toolpath import PROGRAM_FORMATS, toolpath_format
 from ..toolpath.writers import GcodeProgram
@@ -100,6 +100,25 @@ class WorseLine:
         return (f"{at}t = {self.t:.3f} s: tip {1e3 * self.tip[0]:.3g} um against "
                 f"{1e3 * self.tip[1]:.3g} um, orientation {1e6 * self.orientation[0]:.3g} urad "
                 f"against {1e6 * self.orientation[1]:.3g} urad")
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What :meth:`RunResult.summary` gives: the contour errors (um, mrad) of the
+    uncompensated (``before``) and compensated (``after``) commands on the realistic virtual
+    machine, the program's duration against its plan (s), the source lines worse than
+    uncompensated, and the G-code blocks written."""
+
+    before: ErrorSummary
+    after: ErrorSummary
+    duration: float
+    planned_duration: float
+    lines_worse: int
+    blocks: int
+
+    def reduction(self, key: str = "tip_max_um") -> float:
+        """The fraction of ``before[key]`` that compensation removed (1: all; < 0: worse)."""
+        return 1.0 - self.after[key] / self.before[key] if self.before[key] > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -192,97 +211,31 @@ class RunResult:
             for b in bad[np.argsort(-excess[bad], kind="stable")])
 
     def table(self) -> str:
-        """The end-of-run table: contour errors before and after, duration, blocks."""
-        rows = [("predicted", "before", self.predicted_before),
-                ("predicted", "after", self.predicted_after),
-                ("simulated", "before", self.simulated_before),
-                ("simulated", "after", self.simulated_after)]
-        lines = [f"{'contour errors':<22}{'tip max':>10}{'tip mean':>10}{'ori max':>10}"
-                 f"{'ori mean':>10}",
-                 f"{'':<22}{'um':>10}{'um':>10}{'mrad':>10}{'mrad':>10}"]
-        where = self.place
-        # the draws first: where an axis stops under friction one exact machine's answer is
-        # decided by nanometres, so the median and the worst draw are the result (issue 42)
-        if self.draws is not None:
-            lines += self.draws.table(where, learned=self.limited.result.learning is not None)
-            lines.append("on the machine file's machine alone (draw 0), predicted and "
-                         "simulated:")
-        for kind, when, errors in rows:
-            s = errors.summary()
-            lines.append(f"{kind + ' ' + when:<22}{s['tip_max_um']:10.3f}{s['tip_mean_um']:10.3f}"
-                         f"{s['ori_max_mrad']:10.4f}{s['ori_mean_mrad']:10.4f}")
-        for label, before, after in (("tip", self.simulated_before.tip,
-                                      self.simulated_after.tip),
-                                     ("orientation", self.simulated_before.orientation,
-                                      self.simulated_after.orientation)):
-            lines.append(f"simulated {label} reduction: max {_reduction(before.max(), after.max())}, "
-                         f"mean {_reduction(before.mean(), after.mean())}")
-        from ..compensation.blocks import MARGINS
+        """The end-of-run table: contour errors before and after, duration, blocks
+        (:func:`precontour.reports.run_table.run_table`)."""
+        # the text is the report stage's (tests/test_layout.py allows a result's table())
+        from ..reports.run_table import run_table
 
-        lines.append("largest simulated errors, where:")
-        lines += ["  " + largest.format() for largest in self.largest_errors()]
-        worse = self.worse_lines()
-        if worse:
-            lines.append(f"compensated worse than uncompensated on {len(worse)} {where}(s) "
-                         f"(beyond {MARGINS}), simulated, largest first:")
-            lines += ["  " + w.format(where) for w in worse[:5]]
-            if len(worse) > 5:
-                lines.append(f"  ... and {len(worse) - 5} more")
-        else:
-            lines.append(f"no {where} worse than uncompensated (beyond {MARGINS}), simulated")
-        duration = self.commands.duration
-        planned = self.planned.duration - self.final_rest_added
-        slow = self.limited.slowdowns
-        learning = self.limited.result.learning
-        if learning is not None:
-            lines.append(f"learned against the virtual machine within the limits "
-                         f"({learning.draws} draw(s), {learning.machine_runs} runs): kept "
-                         f"{learning.chosen}")
-            fallback = learning.fallback
-            if fallback is not None and fallback.blocks:
-                lines.append(f"  where the learned command would be worse than uncompensated "
-                             f"on a draw, it fell back in {len(fallback.blocks)} block(s):")
-                lines.extend("    " + b.format() for b in fallback.blocks[:10])
-                if len(fallback.blocks) > 10:
-                    lines.append(f"    ... and {len(fallback.blocks) - 10} more blocks")
-        lines.append(f"duration {duration:.3f} s (planned {planned:.3f} s"
-                     + (f"; +{self.final_rest_added:.3f} s of final rest, for the corrections "
-                        "to taper to zero at the programmed end point"
-                        if self.final_rest_added > 0 else "")
-                     + (f"; slowed in {len(slow)} window(s), +{self.limited.added_time:.3f} s"
-                        if slow else "; not slowed") + ")")
-        for s in slow[:10]:
-            lines.append("  slowed " + s.format())
-        if len(slow) > 10:
-            lines.append(f"  ... and {len(slow) - 10} more windows")
-        left_out = self.limited.uncompensated
-        if left_out:
-            lines.append(f"compensation left out in {len(left_out)} window(s) where slowing down "
-                         f"to {100 * self.limited.min_speed:g} % of the planned speed or "
-                         "more could not keep the limits (the planned commands there): "
-                         + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in left_out[:10])
-                         + (" ..." if len(left_out) > 10 else ""))
-        kinks = self.limited.kinks
-        if kinks:
-            lines.append(f"kinks of the corrections smoothed in {len(kinks)} window(s) (corners at "
-                         "stops: the commands there blend into tracking-error "
-                         "pre-compensation): " + ", ".join(f"t = {a:.3f}-{b:.3f} s"
-                                                          for a, b in kinks[:5])
-                         + (" ..." if len(kinks) > 5 else ""))
-        smoothed = self.limited.smoothed
-        if smoothed:
-            lines.append(f"corrections smoothed instead of slowed down in {len(smoothed)} "
-                         "window(s) (they broke a limit; blended into tracking-error "
-                         "pre-compensation, predicted no worse there): "
-                         + ", ".join(f"t = {a:.3f}-{b:.3f} s" for a, b in smoothed[:5])
-                         + (" ..." if len(smoothed) > 5 else ""))
-        lines.append(f"blocks written {self.program.n_blocks} (tolerance "
-                     f"{self.tolerance[0]:g} mm, {self.tolerance[3]:g} rad; "
-                     f"{self.commands.n_samples} samples at {self.commands.ts * 1e3:g} ms)")
-        lines.append(self.linuxcnc_line())
-        if self.feed is not None:
-            lines.append(self.feed.table())
-        return "\n".join(lines)
+        return run_table(self)
+
+    def summary(self) -> RunSummary:
+        """The run's headline numbers on the realistic virtual machine (the machine file's
+        draw; the median and worst draws: :attr:`draws`)."""
+        before, after = self.simulated_before, self.simulated_after
+        return RunSummary(before=before.summary(), after=after.summary(),
+                          duration=float(self.commands.duration),
+                          planned_duration=float(self.planned.duration
+                                                 - self.final_rest_added),
+                          lines_worse=len(self.worse_lines()),
+                          blocks=int(self.program.n_blocks))
+
+    def plot(self):
+        """The contour errors on the realistic virtual machine before and after, their
+        envelopes against time (:func:`precontour.reports.run_report.
+        plot_contour_envelope`); returns the figure."""
+        from ..reports.run_report import plot_contour_envelope
+
+        return plot_contour_envelope(self)
 
     def linuxcnc_line(self) -> str:
         """Which output to run on LinuxCNC, in one line (measured: docs/linuxcnc.md)."""
@@ -296,10 +249,6 @@ class RunResult:
         return (f"for LinuxCNC: no G-code block moves {rotary}, and its planner keeps their "
                 f"timing at a steady feed; the stream ({stream}) keeps it everywhere "
                 "(docs/linuxcnc.md)")
-
-
-def _reduction(before: float, after: float) -> str:
-    return f"{100 * (1 - after / before):.1f} %" if before > 0 else "-"
 
 
 def check_run_outputs(outputs: RunOutputs, inputs: Sequence[str | Path]) -> OutputSet:

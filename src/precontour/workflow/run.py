@@ -201,8 +201,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
             refine=refine, exempt_lines=_rapid_lines(source),
             feed_scale_max=feed_scale_max, min_speed=min(1.0, feed_scale_min / feed_scale_max),
             line=line, ensemble=MachineEnsemble() if ensemble is None else ensemble,
-            progress=lambda message: step(1, message), limits_min_speed=min_speed, iterations=iterations,
-            where="line" if source.format == "gcode" else "row")
+            progress=lambda message: step(1, message), limits_min_speed=min_speed,
+            iterations=iterations, where="line" if source.format == "gcode" else "row")
         timings["feed within tolerance"] = time.perf_counter() - start
         found = feed.compensated
         if not found.met and not write_anyway:
