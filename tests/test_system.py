@@ -200,3 +200,26 @@ def test_every_job_result_summarises_and_plots_itself(servo, paper, tmp_path):
     assert headline.lines_worse == len(result.worse_lines())
     assert result.plot().axes
     assert result.table().startswith("contour errors")
+
+
+def test_the_gcode_tolerance_has_its_own_name(servo, paper, tmp_path):
+    """``gcode_tolerance`` is the G-code decimation's (not the contour tolerance, the corner
+    blending's or the fits'): the former ``tolerance=`` still works, warned, and gives the
+    same program; both at once are refused in one line."""
+    from precontour.tables import write_columns
+    from precontour.workflow import export_commands, run_program
+
+    commands = tmp_path / "commands.csv"
+    write_columns(commands, {"t": paper.t, **{a: paper.q[:, i] for i, a in
+                                             enumerate(servo.axis_names)}})
+    coarse = np.array([1e-2] * 3 + [1e-4] * 2)         # ten times the default
+    new = export_commands(commands, tmp_path / "new.ngc", machine="zhang2013",
+                          gcode_tolerance=coarse)
+    with pytest.warns(DeprecationWarning, match="tolerance=: former spelling"):
+        old = export_commands(commands, tmp_path / "old.ngc", machine="zhang2013",
+                              tolerance=coarse)
+    assert old.n_blocks == new.n_blocks < export_commands(
+        commands, tmp_path / "fine.ngc", machine="zhang2013").n_blocks
+    with pytest.raises(InputError, match="give gcode_tolerance, not tolerance"):
+        run_program(tmp_path / "none.ngc", machine="zhang2013", controller="pid-high",
+                    gcode_tolerance=coarse, tolerance=coarse)

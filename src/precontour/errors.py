@@ -172,3 +172,18 @@ def with_former_spellings(value, kind: type, make, name: str, **former):
                       f"{kind.__name__}({fields})", DeprecationWarning, stacklevel=3)
     options = make(value)
     return replace(options, **given) if given else options
+
+
+def renamed_keyword(value, former_value, name: str, former: str):
+    """The value of keyword ``name``, or ``former_value`` where the caller gave it in the
+    keyword's former spelling ``former`` (with a DeprecationWarning naming the release that
+    removes it, pointed at the caller of the function that takes them); both: refused."""
+    if former_value is None:
+        return value
+    if value is not None:
+        raise InputError(f"give {name}, not {former} (its former spelling) beside it",
+                         field=former)
+    warnings.warn(f"{former}=: former spelling, removed in precontour "
+                  f"{FORMER_SPELLINGS_REMOVED_IN}; give {name}=", DeprecationWarning,
+                  stacklevel=3)
+    return former_value

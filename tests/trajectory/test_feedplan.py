@@ -127,14 +127,17 @@ def test_runaway_duration_is_refused(machine):
         plan_feed(fit_toolpath(builtin_path("paper")), machine, max_samples=1000)
 
 
-def test_c_jump_too_close_to_vertical_is_refused(machine):
-    # Passing 1e-6 rad from vertical: C would turn half a revolution within one grid step.
+@pytest.mark.parametrize("name, tilt", [("zhang2013", "A"), ("head-table-bc", "B")])
+def test_c_jump_too_close_to_vertical_is_refused(name, tilt):
+    # Passing 1e-6 rad from vertical: C would turn half a revolution within one grid step;
+    # the message names the machine's own tilt axis
+    machine = load_machine(name)
     u = np.linspace(0, 1, 41)
     phi = 0.5 - u
     P = np.stack([60 * u, np.zeros_like(u), np.zeros_like(u)], axis=-1)
     O = np.stack([np.sin(phi), np.full_like(u, 1e-6), np.cos(phi)], axis=-1)
     O /= np.linalg.norm(O, axis=1)[:, None]
-    with pytest.raises(PrecontourError, match="axis C jumps by .* too close to A = 0"):
+    with pytest.raises(PrecontourError, match=f"axis C jumps by .* too close to {tilt} = 0"):
         plan_feed(fit_path(P, O), machine)
 
 

@@ -370,7 +370,7 @@ def run_export(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     result = export_commands(args.commands, args.output, format=args.format,
                              machine=args.machine, controller=args.controller,
-                             tolerance=args.tol)
+                             gcode_tolerance=args.tol)
     blocks = f", {result.n_blocks} blocks" if result.n_blocks is not None else ""
     print(f"exported {result.n_samples} command samples as {result.format}{blocks}")
     print(f"wrote {result.path} in {time.perf_counter() - start:.3f} s")
@@ -409,7 +409,7 @@ def run_run(args: argparse.Namespace) -> int:
                              corner_tolerance=args.corner_tol,
                              corner_orientation_tolerance=args.corner_ori_tol,
                              max_samples=args.max_samples,
-                             iterations=args.iterations, tolerance=args.tol,
+                             iterations=args.iterations, gcode_tolerance=args.tol,
                              progress=progress, workers=1, learn=args.learn,
                              limits=LimitOptions(min_speed=args.min_speed),
                              contour_tolerance=feed, draws=args.draws, format=args.format,
@@ -447,7 +447,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
                        tcp=args.tcp, dwell=args.dwell, corner_tolerance=args.corner_tol,
                        corner_orientation_tolerance=args.corner_ori_tol,
                        max_samples=args.max_samples, iterations=args.iterations,
-                       tolerance=args.tol, learn=args.learn,
+                       gcode_tolerance=args.tol, learn=args.learn,
                        limits=LimitOptions(min_speed=args.min_speed), draws=args.draws,
                        format=args.format, tool_table=args.tool_table)
     print(result.summary().splitlines()[-1])

@@ -168,7 +168,7 @@ def plan_feed(path, machine, *, feed: float = DEFAULT_FEED,
     geometry = _grid_geometry(path, machine, s_grid, c_near)
     n_filter = max(1, int(np.ceil(2.0 * acceleration / jerk / ts)))
     reach = 0.5 * n_filter * ts  # a limit is felt over the distance its speed covers in T/2
-    _check_continuity(geometry, s_grid)
+    _check_continuity(geometry, s_grid, tuple(getattr(machine, "axis_names", AXES)))
     speed_cap = _speed_limit(*geometry, h, feed_of_s, lim.feed, lim.acceleration, lim.v, lim.a,
                              lim.j, MARGIN, CURVATURE_SHARE)
 
@@ -328,18 +328,19 @@ def _erode_bands(values, speed, reach, h, fastest, slowest):
     return out
 
 
-def _check_continuity(geometry, s_grid):
+def _check_continuity(geometry, s_grid, axis_names=AXES):
     """Refuse paths whose rotary commands jump between neighbouring grid points: through the
-    A-C trunnion's other pole (tool pointing down, A jumps) or so close to A = 0 that C
-    turns by more than a radian within one grid step; no feed would make them feasible."""
+    trunnion's other pole (tool pointing down, the tilt axis jumps) or so close to tilt 0
+    that the rotary axis turns by more than a radian within one grid step; no feed would
+    make them feasible. ``axis_names``: the machine's letters (tilt in slot 3, rotary in 4)."""
     h = s_grid[1] - s_grid[0]
     k, axis, step = _first_jump(geometry[2], h, 3, 1.0)
     if k >= 0:
-        name = AXES[axis]
+        name, tilt, rotary = axis_names[axis], axis_names[3], axis_names[4]
         why = ("the orientation passes through a singular direction of the kinematics"
-               if name == "A" else "the orientation passes too close to A = 0 (tool along "
-               "the C axis) for C to follow; move the path off that direction or pass "
-               "exactly through it")
+               if axis == 3 else f"the orientation passes too close to {tilt} = 0 (tool "
+               f"along the {rotary} axis) for {rotary} to follow; move the path off that "
+               "direction or pass exactly through it")
         raise PrecontourError(f"axis {name} jumps by {step:.6g} rad within "
                               f"{h:.3g} mm near s = {s_grid[k]:.6g} mm of the path: {why}")
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..machine.drives import AXES, ROTARY_AXES
+from ..machine.drives import AXES
 from ..machine.limits import TILT_TRAVEL, AxisLimits, axis_limits  # noqa: F401 (re-exported)
 from .feedplan import CHECK_RTOL
 
@@ -149,7 +149,7 @@ def check_travel(q: np.ndarray, limits: AxisLimits, *, source: str | None = None
     i = int(np.flatnonzero(out[k])[0])
     name, value = axis_names[i], float(q[k, i])
     low, high = float(limits.position_min[i]), float(limits.position_max[i])
-    rotary = AXES[i] in ROTARY_AXES
+    rotary = i >= 3            # slots 3 and 4 are rotary on every machine
     unit = "rad" if rotary else "mm"
     message = (f"{name} = {value:.6g} {unit} is outside the {name} axis's travel "
                f"[{low:.6g}, {high:.6g}] {unit}")

@@ -11,7 +11,7 @@ from typing import Sequence
 import numpy as np
 
 from ..defaults import EXPORT_FORMATS
-from ..errors import InputError, MachineLimitError
+from ..errors import InputError, MachineLimitError, renamed_keyword
 from ..machine.machine_file import load_machine
 from ..tables import (SUPPORTED_SUFFIXES, check_output_path, read_trajectory, trajectory_columns,
                       write_columns, write_text)
@@ -79,6 +79,7 @@ def export_format(path: Path, format: str | None) -> str:
 
 def export_commands(commands_path: str | Path, output: str | Path, *, format: str | None = None,
                     machine: str | Path, controller: str = "",
+                    gcode_tolerance: np.ndarray | None = None,
                     tolerance: np.ndarray | None = None) -> ExportResult:
     """Write a command file (``t,X,Y,Z,A,C[,...]``) as G-code, a halstreamer file or a table.
 
@@ -86,7 +87,11 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
     written. G-code and halstreamer files are programs a machine runs: the commands must keep the
     machine's limits (checked first; :class:`~precontour.errors.MachineLimitError` names the
     worst excess otherwise), and a halstreamer file needs samples at the servo period.
+    ``gcode_tolerance``: the G-code decimation tolerance per axis
+    (:func:`~precontour.toolpath.writers.gcode_tolerances`; ``tolerance``, its former
+    spelling, warns).
     """
+    tolerance = renamed_keyword(gcode_tolerance, tolerance, "gcode_tolerance", "tolerance")
     output = Path(output)
     format = export_format(output, format)
     inputs = [commands_path] + ([machine] if Path(str(machine)).exists() else [])

@@ -19,7 +19,7 @@ from ..compensation.routes import can_learn, learn_on_ensemble
 from ..compensation.within_limits import LimitedCompensation, compensate_within_limits
 from ..defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                         DEFAULT_CORNER_TOLERANCE, DEFAULT_DWELL)
-from ..errors import (InputError, ToleranceError, is_whole_number, warning,
+from ..errors import (InputError, ToleranceError, is_whole_number, renamed_keyword, warning,
                       with_former_spellings)
 from ..files import check_signals
 from ..machine.machine_file import Machine, load_machine
@@ -43,7 +43,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 corner_orientation_tolerance: float | None =
                 DEFAULT_CORNER_ORIENTATION_TOLERANCE,
                 max_samples: int | None = None, iterations: int = 1,
-                tolerance: np.ndarray | None = None, progress: Progress | None = None,
+                gcode_tolerance: np.ndarray | None = None, progress: Progress | None = None,
                 workers: int | None = 1, learn: int | LearningOptions = 0,
                 ensemble: MachineEnsemble | None = None,
                 limits: LimitOptions = LimitOptions(),
@@ -52,7 +52,7 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 feed_scale_min: float | None = None,
                 write_anyway: bool | None = None,
                 draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None,
-                tool_table=None) -> RunResult:
+                tool_table=None, tolerance: np.ndarray | None = None) -> RunResult:
     """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
     writes. ``outputs``, where given, are checked before anything is computed (None: a library
     caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
@@ -62,8 +62,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
     of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s);
     ``tool_table``: G-code tool lengths (as :func:`load_program_trajectory`'s).
-    ``tolerance``: the G-code decimation
-    tolerance per axis (:func:`~.toolpath.writers.gcode_tolerances`).
+    ``gcode_tolerance``: the G-code decimation tolerance per axis
+    (:func:`~.toolpath.writers.gcode_tolerances`; ``tolerance``, its former spelling, warns).
 
     ``learn``: passes of learning (a number, or :class:`~.options.LearningOptions`) against
     the realistic virtual machine after the compensation within limits
@@ -98,6 +98,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     machine's limits cannot be kept."""
     if not is_whole_number(draws) or draws < 1:
         raise InputError(f"must be a whole number >= 1, got {draws!r}", field="--draws")
+    gcode_tolerance = renamed_keyword(gcode_tolerance, tolerance, "gcode_tolerance",
+                                      "tolerance")
     learning = learning_options(learn)
     limits = with_former_spellings(limits, LimitOptions, limit_options, "limits",
                                    min_speed=min_speed)
@@ -111,7 +113,8 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
     return _run_program(program, outputs, machine=machine, controller=controller, tcp=tcp,
                         dwell=dwell, corner_tolerance=corner_tolerance,
                         corner_orientation_tolerance=corner_orientation_tolerance,
-                        max_samples=max_samples, iterations=iterations, tolerance=tolerance,
+                        max_samples=max_samples, iterations=iterations,
+                        tolerance=gcode_tolerance,
                         progress=progress, workers=workers, learning=learning,
                         ensemble=ensemble, limits=limits, feed_options=contour_tolerance,
                         draws=draws, format=format, tool_table=tool_table)
