@@ -215,3 +215,34 @@ def test_machine_file_gcode_example_loads():
         machine = parse_machine(builtin_machine_text("linuxcnc-xyzac-trt") + "\n" + block,
                                 source="docs/machine-file.md")
         assert machine.gcode.g28 is not None and machine.gcode.work_offsets
+
+
+def _documented_parameters(function) -> set[str]:
+    """The names a numpydoc ``Parameters`` section of ``function``'s docstring describes."""
+    import inspect
+
+    doc = inspect.getdoc(function) or ""
+    found = re.search(r"Parameters\n-+\n(.*?)(?:\n\n[A-Z][a-z]+\n-+\n|\Z)", doc, re.S)
+    names = set()
+    for line in (found.group(1).splitlines() if found else ()):
+        if line and not line.startswith(" "):
+            names.update(n.strip().lstrip("*") for n in line.split(" : ")[0].split(","))
+    return names
+
+
+def test_the_public_entry_points_have_numpydoc_docstrings():
+    """Every function the package's top level gives, and ``run`` and ``export`` without the
+    files, describes each of its parameters in a numpydoc ``Parameters`` section and what
+    it gives in ``Returns``."""
+    import inspect
+
+    import precontour
+    from precontour.workflow import export_commands, run_program
+
+    functions = [getattr(precontour, name) for name in precontour.__all__
+                 if inspect.isfunction(getattr(precontour, name))]
+    assert len(functions) >= 14
+    for function in functions + [run_program, export_commands]:
+        missing = set(inspect.signature(function).parameters) - _documented_parameters(function)
+        assert not missing, (function.__name__, sorted(missing))
+        assert "\nReturns\n-------\n" in inspect.getdoc(function), function.__name__

@@ -45,11 +45,23 @@ REALISM = {
 
 def predict(servo: Servo, trajectory: Trajectory, *, tol_linear: float | None = None,
             tol_rotary: float | None = None):
-    """The tracking errors e(t) of every axis at every sample, in closed form (spec sections
-    3-5), and the contour errors where ``trajectory`` carries its reference; returns a
-    :class:`~precontour.compensation.pieces.ProgramPrediction` (``e``, ``contour``).
-    ``tol_linear``, ``tol_rotary``: the spline fits' tolerances (mm, rad; default 1 um,
-    1 urad; spec section 3). Long programs in overlapping pieces."""
+    """The tracking errors of every axis at every sample, in closed form (spec sections 3-5).
+
+    Parameters
+    ----------
+    servo : Servo
+        The machine and controller (its closed-loop error models).
+    trajectory : Trajectory
+        The axis commands; where it carries its reference, the contour errors of the
+        predicted motion too. Long programs are predicted in overlapping pieces.
+    tol_linear, tol_rotary : float, optional
+        The spline fits' tolerances, mm and rad (default 1 um, 1 urad; spec section 3).
+
+    Returns
+    -------
+    ProgramPrediction
+        ``e`` (N, 5), ``contour`` (or None), ``summary()``, ``plot()``.
+    """
     from .compensation.pieces import predict_program
 
     return predict_program(servo, trajectory, tol_linear=tol_linear, tol_rotary=tol_rotary)
@@ -58,12 +70,27 @@ def predict(servo: Servo, trajectory: Trajectory, *, tol_linear: float | None = 
 def simulate(servo: Servo, commands, *, realism: str = "realistic",
              friction_scale=1.0, inertia_scale=1.0, damping_scale=1.0,
              encoder_resolution=None, encoder_offset=None, encoder_noise=None):
-    """The drives of ``servo`` following ``commands`` (a Trajectory, a :class:`Compensation`
-    or an (N, 5) array sampled at the servo period) on the virtual machine; ``realism``: a
-    key of :data:`REALISM`. The rest: a true machine's departures from the machine file
-    (``friction_scale``, ``inertia_scale``, ``damping_scale``, the encoder's; as for
-    :func:`precontour.simulation.simulate`). Returns a
-    :class:`~precontour.simulation.SimulationResult`."""
+    """The drives of ``servo`` following ``commands`` on the virtual machine.
+
+    Parameters
+    ----------
+    servo : Servo
+        The machine and controller.
+    commands : Trajectory, Compensation or ndarray, shape (N, 5)
+        The axis commands (an array: sampled at the servo period).
+    realism : str
+        A key of :data:`REALISM`: ``"realistic"`` (discrete control at the servo period,
+        friction and its feed-forward) or ``"exact"`` (the continuous linear loops the
+        prediction models).
+    friction_scale, inertia_scale, damping_scale, encoder_resolution, encoder_offset, encoder_noise
+        A true machine's departures from the machine file, as for
+        :func:`precontour.simulation.simulate`.
+
+    Returns
+    -------
+    SimulationResult
+        ``t``, ``q_cmd``, ``q_act``, ``e``, ``summary()``, ``plot()``.
+    """
     from .simulation.virtual_machine import simulate as _simulate
 
     if realism not in REALISM:
@@ -77,8 +104,24 @@ def simulate(servo: Servo, commands, *, realism: str = "realistic",
 
 
 def plot_contour_errors(servo: Servo, reference, actuals: dict, *, axes=None):
-    """Contour errors of several actual motions (label -> SimulationResult or axis positions)
-    against ``reference``, tip and orientation against time, in one figure; returns it."""
+    """Contour errors of several actual motions against one reference, in one figure.
+
+    Parameters
+    ----------
+    servo : Servo
+        The machine (its kinematics) and controller.
+    reference : Trajectory or ReferencePath
+        The reference tool path.
+    actuals : dict
+        Label -> actual motion (a SimulationResult, or axis positions (N, 5)).
+    axes : sequence of two matplotlib axes, optional
+        Where to draw tip and orientation (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Tip (um) and orientation (mrad) contour errors against time.
+    """
     from .reports.plots import plot_contour_errors as plot
 
     return plot(np.asarray(reference.t), {label: contour_errors(servo, reference, actual)
@@ -86,9 +129,23 @@ def plot_contour_errors(servo: Servo, reference, actuals: dict, *, axes=None):
 
 
 def contour_errors(servo: Servo, reference, actual) -> ContourErrors:
-    """Contour errors (tool tip, mm; orientation, rad; spec section 1) of the actual motion
-    ``actual`` (a SimulationResult, or axis positions (N, 5) at the reference's samples)
-    against ``reference`` (a Trajectory with its reference, or a ReferencePath)."""
+    """Contour errors of an actual motion against its reference (spec section 1).
+
+    Parameters
+    ----------
+    servo : Servo
+        The machine (its kinematics) and controller.
+    reference : Trajectory or ReferencePath
+        The reference tool path (a Trajectory with its columns ``Px..Ok``).
+    actual : SimulationResult or ndarray, shape (N, 5)
+        The actual motion: a simulation, or axis positions at the reference's samples.
+
+    Returns
+    -------
+    ContourErrors
+        Tool tip (mm) and orientation (rad) contour errors at every sample; ``.summary()``
+        in um and mrad.
+    """
     path = reference if isinstance(reference, ReferencePath) else \
         ReferencePath.from_trajectory(reference)
     q_act = getattr(actual, "q_act", actual)

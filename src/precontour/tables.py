@@ -112,17 +112,35 @@ def read_columns(path: str | Path, required: Sequence[str], optional: Sequence[s
 def read_trajectory(path: str | Path, *, min_samples: int = MIN_SAMPLES, kinematics=None,
                     tolerance: tuple[float, float] = REFERENCE_TOLERANCE,
                     axis_names: Sequence[str] | None = None) -> Trajectory:
-    """Read a trajectory file with columns ``t,X,Y,Z,A,C`` (s, mm, rad; ``B`` in place of
-    ``A`` on a B-C machine: ``axis_names``, default the ``kinematics``' own, else either
-    letter) and, if all present, the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional
-    program ``line`` (whole numbers). A B-C machine's file with the old column ``A`` is read
-    as B, with one notice.
+    """Read a trajectory file: the axis commands, and their reference where given.
 
-    Time must be uniformly sampled, with at least ``min_samples`` samples; values within
-    :data:`MAX_TIME`, :data:`MAX_LINEAR`, :data:`MAX_ROTARY`. A step of C by a multiple of
-    2 pi between two samples (a post-processor's wrap into one turn) is unwrapped, with one
-    notice. With ``kinematics``, the reference must agree with the axes' direct kinematics
-    within ``tolerance`` = (mm, rad) on every row (see :data:`REFERENCE_TOLERANCE`).
+    The columns are ``t,X,Y,Z,A,C`` (s, mm, rad; ``B`` in place of ``A`` on a B-C machine)
+    and, if all present, the reference ``Px,Py,Pz,Oi,Oj,Ok``, and the optional program
+    ``line`` (whole numbers). A B-C machine's file with the old column ``A`` is read as B,
+    with one notice. Time must be uniformly sampled; values within :data:`MAX_TIME`,
+    :data:`MAX_LINEAR`, :data:`MAX_ROTARY`. A step of C by a multiple of 2 pi between two
+    samples (a post-processor's wrap into one turn) is unwrapped, with one notice.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV, ``.npz`` or ``.parquet`` file.
+    min_samples : int
+        Fewest samples accepted.
+    kinematics : optional
+        The machine's kinematics: the reference must then agree with the axes' direct
+        kinematics within ``tolerance`` on every row (see :data:`REFERENCE_TOLERANCE`); its
+        axis letters are the file's.
+    tolerance : tuple of (float, float)
+        That agreement, mm and rad.
+    axis_names : sequence of str, optional
+        The machine's axis letters (default the ``kinematics``' own, else either letter).
+
+    Returns
+    -------
+    Trajectory
+        The checked samples; a bad value is an error naming the file, the row and the
+        column.
     """
     source = str(path)
     if axis_names is None and kinematics is not None:
@@ -266,11 +284,22 @@ def trajectory_columns(traj: Trajectory, axis_names: Sequence[str] = AXES
 
 def write_columns(path: str | Path, columns: Mapping[str, np.ndarray], *,
                   inputs: Iterable[str | Path] = ()) -> Path:
-    """Write float columns to CSV / ``.npz`` / ``.parquet`` (by suffix), atomically
-    (:func:`precontour.files.atomic_write`).
+    """Write float columns to CSV, ``.npz`` or ``.parquet`` (by suffix), atomically
+    (:func:`precontour.files.atomic_write`); CSV values with full (round-trip) precision.
 
-    CSV values are written with full (round-trip) precision. ``inputs`` are the files the
-    result was computed from: writing over one of them is refused.
+    Parameters
+    ----------
+    path : str or Path
+        The output file.
+    columns : Mapping[str, ndarray]
+        Column name -> values, all of one length.
+    inputs : iterable of str or Path
+        The files the result was computed from: writing over one of them is refused.
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     path = check_output_table(path, inputs)
     suffix = path.suffix.lower()

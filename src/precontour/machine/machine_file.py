@@ -94,7 +94,19 @@ class Machine:
 
 
 def load_machine(spec: str | Path) -> Machine:
-    """Load a built-in machine by name (``"zhang2013"``) or a machine file by path."""
+    """A built-in machine or a machine file.
+
+    Parameters
+    ----------
+    spec : str or Path
+        A built-in machine's name (``"zhang2013"``; ``precontour machines`` lists them) or
+        the path of a TOML machine file (docs/machine-file.md).
+
+    Returns
+    -------
+    Machine
+        Kinematics, drives, controllers and servo period, checked.
+    """
     spec_str = str(spec)
     if spec_str in BUILTIN_MACHINES:
         return parse_machine(builtin_machine_text(spec_str),

@@ -60,9 +60,23 @@ class Servo:
 
 
 def load_servo(machine: str | Path | Machine, controller: str) -> Servo:
-    """The :class:`Servo` of ``machine`` (a built-in name, a machine file or a
-    :class:`~precontour.machine.Machine`) running ``controller``. A controller without
-    closed-loop models (a nonlinear one) is refused here, with the file and the name."""
+    """The servo system of a machine running one controller, made once.
+
+    Parameters
+    ----------
+    machine : str, Path or Machine
+        A built-in machine's name, a machine file, or a loaded
+        :class:`~precontour.machine.Machine`.
+    controller : str
+        The name of one of its controllers. A controller without closed-loop models (a
+        nonlinear one) is refused here, with the file and the name.
+
+    Returns
+    -------
+    Servo
+        The machine, the controller's closed-loop error models (spec section 2), the axis
+        limits and the servo period.
+    """
     machine_obj = machine if isinstance(machine, Machine) else load_machine(machine)
     models = machine_obj.error_models(controller)
     return Servo(machine=machine_obj, controller=controller, models=tuple(models),

@@ -133,10 +133,35 @@ def read_toolpath_report(path: str | Path, *, machine=None, feed_units: str = "m
 def read_program(path: str | Path, machine, *, tcp: bool = False, block_delete: bool = True,
                  arc_tolerance: float = ARC_CHORD_TOLERANCE,
                  format: str | None = None, tool_table=None) -> Program:
-    """Read an NC program into machine-axis moves: G-code
-    (:func:`~precontour.toolpath.gcode.read_program`, see there for the parameters) or
-    Heidenhain conversational (:func:`~precontour.toolpath.heidenhain.read_heidenhain_program`),
-    by ``format`` or the file's extension (an extension of neither is read as G-code)."""
+    """Read an NC program into machine-axis moves.
+
+    Parameters
+    ----------
+    path : str or Path
+        The program: G-code (:func:`~precontour.toolpath.gcode.read_program`, see there for
+        the dialects) or Heidenhain conversational
+        (:func:`~precontour.toolpath.heidenhain.read_heidenhain_program`), by ``format`` or
+        the file's extension (an extension of neither is read as G-code).
+    machine : Machine
+        The machine the program is for (its kinematics and axes).
+    tcp : bool
+        The program starts in TCP mode (for controllers that switch it with M codes the
+        machine file does not name).
+    block_delete : bool
+        Skip blocks starting with ``/``.
+    arc_tolerance : float
+        Largest distance between an arc and its chords, mm.
+    format : str, optional
+        The program's format instead of the one its extension says.
+    tool_table : str, Path or Mapping[int, float], optional
+        Tool lengths (mm) by tool number: a LinuxCNC tool table file or a mapping; it
+        replaces the machine file's ``[tools]``.
+
+    Returns
+    -------
+    Program
+        Moves in machine axes, with their source lines, stops and pass-through lines.
+    """
     name = None
     try:
         name = toolpath_format(path, format)

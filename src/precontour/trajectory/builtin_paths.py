@@ -129,9 +129,21 @@ _FACTORIES = {"paper": paper_path, "circle": circle_path, "cone": cone_path, "fa
 
 
 def builtin_path(name: str, **params) -> ToolPath:
-    """The built-in path ``name`` (one of :data:`BUILTIN_PATHS`) with optional parameters
-    passed to its factory (:func:`paper_path`, :func:`circle_path`, :func:`cone_path`,
-    :func:`fan_path`)."""
+    """The built-in tool path ``name``.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`BUILTIN_PATHS`: ``paper``, ``circle``, ``cone``, ``fan``.
+    **params
+        Passed to its factory (:func:`paper_path`, :func:`circle_path`, :func:`cone_path`,
+        :func:`fan_path`).
+
+    Returns
+    -------
+    ToolPath
+        Tool tip points and orientations, in the workpiece frame.
+    """
     try:
         factory = _FACTORIES[name]
     except KeyError:

@@ -83,13 +83,34 @@ def export_commands(commands_path: str | Path, output: str | Path, *, format: st
                     tolerance: np.ndarray | None = None) -> ExportResult:
     """Write a command file (``t,X,Y,Z,A,C[,...]``) as G-code, a halstreamer file or a table.
 
-    ``machine`` (built-in name or machine file) has no default: its limits decide what may be
-    written. G-code and halstreamer files are programs a machine runs: the commands must keep the
+    G-code and halstreamer files are programs a machine runs: the commands must keep the
     machine's limits (checked first; :class:`~precontour.errors.MachineLimitError` names the
     worst excess otherwise), and a halstreamer file needs samples at the servo period.
-    ``gcode_tolerance``: the G-code decimation tolerance per axis
-    (:func:`~precontour.toolpath.writers.gcode_tolerances`; ``tolerance``, its former
-    spelling, warns).
+
+    Parameters
+    ----------
+    commands_path : str or Path
+        The command file (``precontour compensate`` or ``run --commands`` writes one).
+    output : str or Path
+        The file to write; never an input.
+    format : str, optional
+        One of :data:`~precontour.defaults.EXPORT_FORMATS` (default: by the output's
+        suffix).
+    machine : str or Path
+        A built-in machine's name or a machine file; no default: its limits decide what may
+        be written.
+    controller : str
+        Named in the written program's header (an unknown name is an error).
+    gcode_tolerance : ndarray, shape (5,), optional
+        The G-code decimation tolerance per axis
+        (:func:`~precontour.toolpath.writers.gcode_tolerances`).
+    tolerance : ndarray, optional
+        The former spelling of ``gcode_tolerance``, accepted with a DeprecationWarning.
+
+    Returns
+    -------
+    ExportResult
+        The path, the format, the samples and the blocks written.
     """
     tolerance = renamed_keyword(gcode_tolerance, tolerance, "gcode_tolerance", "tolerance")
     output = Path(output)

@@ -53,49 +53,83 @@ def run_program(program: str | Path, outputs: RunOutputs | None = None, *, machi
                 write_anyway: bool | None = None,
                 draws: int = DEFAULT_CHECK_DRAWS, format: str | None = None,
                 tool_table=None, tolerance: np.ndarray | None = None) -> RunResult:
-    """Compute ``run`` (see the module docstring) without writing; :func:`write_run_outputs`
-    writes. ``outputs``, where given, are checked before anything is computed (None: a library
-    caller that keeps the result in memory). ``machine`` (a built-in name or a machine file)
-    and ``controller`` have no default: a program compensated for another machine than the
-    user's is wrong silently. ``tcp``, ``dwell``, ``corner_tolerance``,
-    ``corner_orientation_tolerance``, ``max_samples``:
-    planning, as :func:`load_program_trajectory`; ``format``: the program's format, instead
-    of the one its extension says (as :func:`~precontour.toolpath.read_toolpath`'s);
-    ``tool_table``: G-code tool lengths (as :func:`load_program_trajectory`'s).
-    ``gcode_tolerance``: the G-code decimation tolerance per axis
-    (:func:`~.toolpath.writers.gcode_tolerances`; ``tolerance``, its former spelling, warns).
+    """``precontour run`` without writing (see the module docstring); :func:`write_run_outputs`
+    writes.
 
-    ``learn``: passes of learning (a number, or :class:`~.options.LearningOptions`) against
-    the realistic virtual machine after the compensation within limits
-    (:func:`~.compensation.within_limits.learn_within_limits`; 0: none; skipped, with a
-    notice, for a program not sampled at the servo period; segment by segment above
-    :data:`~.compensation.pieces.AT_ONCE_SAMPLES` samples), every decision taken on the
-    draws of the ensemble (the options', else ``ensemble``, default
-    :class:`~.simulation.ensemble.MachineEnsemble` ()) and the result nowhere worse than
-    uncompensated on them, block by block (each source line;
-    :func:`~precontour.compensation.routes.learn_on_ensemble`).
-    ``limits``: :class:`~.options.LimitOptions`, whose ``min_speed`` is the floor of the
-    local slow-downs that keep the limits, a fraction of the planned speed (below it the
-    planned commands are kept); ``run`` always keeps them.
-    ``contour_tolerance``: :class:`~.options.ToleranceOptions` (or its ``tolerance``
-    alone): find the fastest motion whose compensated contour errors keep it on the
-    realistic virtual machine (each search's result checked on the draws of ``ensemble``,
-    default :class:`~.simulation.ensemble.MachineEnsemble` ()), between its
-    ``feed_scale_min`` and ``feed_scale_max`` times the programmed feed, and the
-    uncompensated baseline the same way (:func:`~.planning.tolerance.feed_within_tolerance`;
-    ``RunResult.feed``); where the compensated one is not met even at the lowest feed, raise
-    :class:`~precontour.errors.ToleranceError` naming the place unless ``write_anyway``.
-    ``min_speed``, ``feed_scale_max``, ``feed_scale_min``, ``write_anyway``: the former
-    spellings of those options' fields, kept (with an options object, give them there).
-    ``draws``: the machines both commands are checked on, the machine file's and
-    ``draws - 1`` draws of the ensemble (:func:`check_on_draws`; ``RunResult.draws``, None
-    for 1).
-    ``workers``: processes for the two virtual-machine runs (1 by default; None: 2
-    when the computer has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES`
-    samples; more than 1 needs the calling script's own code under
-    ``if __name__ == "__main__":``, as for any use of :mod:`multiprocessing`).
-    Raises :class:`~precontour.errors.PrecontourError` subclasses on bad input and when the
-    machine's limits cannot be kept."""
+    Parameters
+    ----------
+    program : str or Path
+        The NC program or CL data.
+    outputs : RunOutputs, optional
+        Where the outputs go, checked before anything is computed (None: a library caller
+        that keeps the result in memory).
+    machine : str or Path
+        A built-in machine's name or a machine file. No default, nor for ``controller``: a
+        program compensated for another machine than the user's is wrong silently.
+    controller : str
+        The machine's controller the program runs with.
+    tcp, dwell, corner_tolerance, corner_orientation_tolerance, max_samples
+        Planning, as :func:`load_program_trajectory`.
+    iterations : int
+        Compensation passes, at most.
+    gcode_tolerance : ndarray, shape (5,), optional
+        The G-code decimation tolerance per axis
+        (:func:`~.toolpath.writers.gcode_tolerances`).
+    progress : callable, optional
+        ``progress(done, total, message)`` between the stages.
+    workers : int or None
+        Processes for the two virtual-machine runs (1 by default; None: 2 when the computer
+        has two cores or more and the trajectory :data:`PARALLEL_MIN_SAMPLES` samples; more
+        than 1 needs the calling script's own code under ``if __name__ == "__main__":``, as
+        for any use of :mod:`multiprocessing`).
+    learn : int or LearningOptions
+        Passes of learning against the realistic virtual machine after the compensation
+        within the limits (0: none; skipped, with a notice, for a program not sampled at the
+        servo period; segment by segment above :data:`~.compensation.pieces.AT_ONCE_SAMPLES`
+        samples), every decision taken on the draws of the ensemble (the options', else
+        ``ensemble``, default :class:`~.simulation.ensemble.MachineEnsemble` ()) and the
+        result nowhere worse than uncompensated on them, block by block (each source line;
+        :func:`~precontour.compensation.routes.learn_on_ensemble`).
+    ensemble : MachineEnsemble, optional
+        The draws learning, the feed search and the check on the draws run on (default
+        :class:`~.simulation.ensemble.MachineEnsemble` ()).
+    limits : LimitOptions
+        Its ``min_speed`` is the floor of the local slow-downs that keep the limits, a
+        fraction of the planned speed (below it the planned commands are kept); ``run``
+        always keeps the limits.
+    contour_tolerance : ToleranceOptions or ContourTolerance, optional
+        Find the fastest motion whose compensated contour errors keep it on the realistic
+        virtual machine (each search's result checked on the draws of ``ensemble``),
+        between its ``feed_scale_min`` and ``feed_scale_max`` times the programmed feed, and
+        the uncompensated baseline the same way
+        (:func:`~.planning.tolerance.feed_within_tolerance`; ``RunResult.feed``); where the
+        compensated one is not met even at the lowest feed, raise
+        :class:`~precontour.errors.ToleranceError` naming the place unless
+        ``write_anyway``.
+    draws : int
+        The machines both commands are checked on: the machine file's and ``draws - 1``
+        draws of the ensemble (:func:`check_on_draws`; ``RunResult.draws``, None for 1).
+    format : str, optional
+        The program's format, instead of the one its extension says (as
+        :func:`~precontour.toolpath.read_toolpath`'s).
+    tool_table : optional
+        G-code tool lengths (as :func:`load_program_trajectory`'s).
+    min_speed, feed_scale_max, feed_scale_min, write_anyway, tolerance
+        Former spellings of ``limits.min_speed``, of ``contour_tolerance``'s fields and of
+        ``gcode_tolerance``, accepted with a DeprecationWarning (with an options object,
+        give them there).
+
+    Returns
+    -------
+    RunResult
+        The plan, the compensation within the limits, the checks on the virtual machine and
+        its draws, the G-code; ``summary()``, ``table()``, ``plot()``.
+
+    Raises
+    ------
+    PrecontourError
+        On bad input, and when the machine's limits cannot be kept.
+    """
     if not is_whole_number(draws) or draws < 1:
         raise InputError(f"must be a whole number >= 1, got {draws!r}", field="--draws")
     gcode_tolerance = renamed_keyword(gcode_tolerance, tolerance, "gcode_tolerance",
