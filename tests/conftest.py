@@ -152,4 +152,4 @@ def servo_of(machine, controller: str, limits=None):
     from precontour import load_servo
 
     servo = load_servo(machine, controller)
-    return servo if limits is None else dataclasses.replace(servo, limits=limits)
+    return servo if limits is None else dataclasses.replace(servo, axis_limits=limits)

@@ -35,7 +35,7 @@ def test_servo_is_made_once_from_a_name_a_file_or_a_machine(servo, tmp_path):
             machine.drives)):
         np.testing.assert_array_equal(ours.num, theirs.num)
         np.testing.assert_array_equal(ours.den, theirs.den)
-    np.testing.assert_array_equal(servo.limits.jerk, [d.j_max for d in machine.drives])
+    np.testing.assert_array_equal(servo.axis_limits.jerk, [d.j_max for d in machine.drives])
     with pytest.raises(precontour.MachineFileError, match="unknown controller"):
         load_servo("zhang2013", "pid-medium")
     assert "Servo(machine='zhang2013'" in repr(servo)
@@ -67,7 +67,7 @@ def test_compensate_keeps_the_limits_by_default(servo):
     comp = compensate(servo, circle)
     assert comp.within_limits and comp.slowdowns and comp.added_time > 0
     jerk = np.abs(np.diff(comp.commands.q, 3, axis=0)).max(axis=0) / circle.ts ** 3
-    assert np.all(jerk <= servo.limits.jerk * (1 + 1e-9))
+    assert np.all(jerk <= servo.axis_limits.jerk * (1 + 1e-9))
     assert comp.reference.n_samples == comp.commands.n_samples > circle.n_samples
 
 
@@ -149,6 +149,9 @@ def test_compensation_has_one_entry_and_the_system_is_the_machines():
             assert callable(getattr(workflow, former))
     with pytest.raises(AttributeError):
         compensation.learn_within_limits
+    servo = precontour.load_servo("zhang2013", "pid-high")
+    with pytest.warns(DeprecationWarning, match="Servo.limits: former spelling"):
+        assert servo.limits is servo.axis_limits
 
 
 def test_the_former_calls_give_what_the_servo_first_ones_give(servo, paper):

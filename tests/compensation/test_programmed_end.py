@@ -149,7 +149,7 @@ def test_compensated_commands_end_at_the_programmed_end(name, controller, servos
     assert np.abs(q[-1] - traj.q[-1]).max() <= 1e-9
     hold = round(END_HOLD / reference.ts)
     assert np.all(q[-hold:] == traj.q[-1])
-    assert check_limits(q, reference.ts, servo.limits).ok
+    assert check_limits(q, reference.ts, servo.axis_limits).ok
     tip, orientation = BEFORE[name, controller]
     assert 1e3 * comp.after.tip.max() <= tip * (1 + MARGIN) + ROUNDING
     assert 1e6 * comp.after.orientation.max() <= orientation * (1 + MARGIN) + ROUNDING

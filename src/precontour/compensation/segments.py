@@ -81,7 +81,7 @@ def learn_by_segments(servo: Servo, limited: LimitedCompensation, machine_of, pa
     :func:`~.stops.learn_at_stops`. ``progress(label, summary)`` after each
     command tried, the label prefixed with the segment. ``result.learning`` joins the
     segments' reports (:func:`join_reports`)."""
-    models, limits = servo.models, servo.limits
+    models, limits = servo.models, servo.axis_limits
     reference = limited.reference
     n, ts = reference.n_samples, reference.ts
     line = limited.line

@@ -179,7 +179,7 @@ def compensate_within_limits(servo: Servo, reference: Trajectory, *,
     """
     if not 0.0 < min_speed <= 1.0:
         raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
-    limits = servo.limits
+    limits = servo.axis_limits
     options = dict(method=method, iterations=iterations, tol_linear=tol_linear,
                    tol_rotary=tol_rotary)
     ts = reference.ts
@@ -397,7 +397,7 @@ def learn_within_limits(servo: Servo, limited: LimitedCompensation,
     windows), falling back locally to axis tracking-error pre-compensation or the planned
     command where needed (:mod:`.blocks`). ``update``, ``local``: as for
     :func:`~.stops.learn_at_stops`. ``result.learning`` reports what was tried and kept."""
-    kinematics, models, limits = servo.kinematics, servo.models, servo.limits
+    kinematics, models, limits = servo.kinematics, servo.models, servo.axis_limits
     reference = limited.reference
     q_start = limited.result.trajectory.q
     path = ReferencePath.from_trajectory(reference)
@@ -423,7 +423,7 @@ def planned_if_uncompensated(servo: Servo, limited: LimitedCompensation,
     learning = limited.result.learning
     if learning is None or learning.chosen != "uncompensated" or not limited.slowdowns:
         return limited
-    check = check_limits(planned.q, planned.ts, servo.limits, t0=float(planned.t[0]))
+    check = check_limits(planned.q, planned.ts, servo.axis_limits, t0=float(planned.t[0]))
     if not check.ok:
         return limited
     notice(f"learning kept the uncompensated commands everywhere: the "
@@ -461,7 +461,7 @@ def learn_commands(servo: Servo, reference: Trajectory, q_start: np.ndarray,
     over the final rest (:func:`~.programmed_end.end_at_programmed_end`; False for an earlier
     segment).
     """
-    kinematics, limits = servo.kinematics, servo.limits
+    kinematics, limits = servo.kinematics, servo.axis_limits
     ts, t0 = reference.ts, float(reference.t[0])
     line = reference.line if line is None else line
     path = ReferencePath.from_trajectory(reference) if path is None else path

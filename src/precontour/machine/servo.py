@@ -8,8 +8,11 @@ functions take their system first; no stage builds error models itself.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..defaults import FORMER_SPELLINGS_REMOVED_IN
 
 from .limits import AxisLimits
 from .machine_file import Machine, load_machine
@@ -29,14 +32,23 @@ class Servo:
         The chosen controller's name.
     models : tuple of LinearErrorModel
         The controller's closed-loop error models of the five axes (spec section 2).
-    limits : AxisLimits
+    axis_limits : AxisLimits
         The axis limits (travel, velocity, acceleration, jerk).
     """
 
     machine: Machine
     controller: str
     models: tuple
-    limits: AxisLimits
+    axis_limits: AxisLimits
+
+    @property
+    def limits(self) -> AxisLimits:
+        """The former name of :attr:`axis_limits` ("limits" is also compensation's
+        :class:`~precontour.compensation.LimitOptions`), with a DeprecationWarning."""
+        warnings.warn(f"Servo.limits: former spelling, removed in precontour "
+                      f"{FORMER_SPELLINGS_REMOVED_IN}; use Servo.axis_limits",
+                      DeprecationWarning, stacklevel=2)
+        return self.axis_limits
 
     @property
     def kinematics(self):
@@ -80,7 +92,7 @@ def load_servo(machine: str | Path | Machine, controller: str) -> Servo:
     machine_obj = machine if isinstance(machine, Machine) else load_machine(machine)
     models = machine_obj.error_models(controller)
     return Servo(machine=machine_obj, controller=controller, models=tuple(models),
-                 limits=AxisLimits.from_machine(machine_obj))
+                 axis_limits=AxisLimits.from_machine(machine_obj))
 
 
 def learning_controller(servo: Servo, name: str | None = None):

@@ -417,7 +417,7 @@ def search_feed(servo: Servo, planned: Trajectory, tolerance: ContourTolerance, 
     within the limits raises."""
     if not 0.0 < min_speed <= 1.0:
         raise ValueError(f"min_speed must be in (0, 1], got {min_speed!r}")
-    machine, controller, limits = servo.machine, servo.controller, servo.limits
+    machine, controller, limits = servo.machine, servo.controller, servo.axis_limits
     if line is not None:
         # the lines given travel with the trajectory (and through its re-timings)
         planned = replace(planned, line=np.asarray(line))

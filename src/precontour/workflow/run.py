@@ -22,8 +22,7 @@ from ..defaults import (DEFAULT_CHECK_DRAWS, DEFAULT_CORNER_ORIENTATION_TOLERANC
 from ..errors import (InputError, ToleranceError, is_whole_number, renamed_keyword, warning,
                       with_former_spellings)
 from ..files import check_signals
-from ..machine.machine_file import Machine, load_machine
-from ..machine.servo import load_servo
+from ..machine.servo import Servo, load_servo
 from ..options import (LearningOptions, LimitOptions, ToleranceOptions, learning_options,
                        limit_options)
 from ..planning.tolerance import ContourTolerance, FeedWithinTolerance, feed_within_tolerance
@@ -181,9 +180,8 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     start = time.perf_counter()
     # every input is read and checked before the first progress line, so that a bad one
     # is the first thing said
-    machine_obj = load_machine(machine)
-    servo = load_servo(machine_obj, controller)
-    source = read_run_program(program, machine_obj, tcp=tcp, dwell=dwell,
+    servo = load_servo(machine, controller)
+    source = read_run_program(program, servo.machine, tcp=tcp, dwell=dwell,
                               max_samples=max_samples, format=format,
                               tool_table=tool_table)
     # the highest feed of the search: the programmed one for an NC program, twice CL data's
@@ -192,7 +190,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     feed_scale_max, feed_scale_min = feed_options.feed_scale_max, feed_options.feed_scale_min
     write_anyway = feed_options.write_anyway
     step(0, f"plan {program}")
-    planned, passthrough = plan_run_program(source, machine_obj, dwell=dwell,
+    planned, passthrough = plan_run_program(source, servo.machine, dwell=dwell,
                                             corner_tolerance=corner_tolerance,
                                             corner_orientation_tolerance=(
                                                 corner_orientation_tolerance),
@@ -221,7 +219,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
         if feed_scale_max != 1.0:
             step(1, f"plan {program} at {feed_scale_max:g} x the programmed feed")
             planned = with_final_rest(plan_run_program(
-                source, machine_obj, dwell=dwell, corner_tolerance=corner_tolerance,
+                source, servo.machine, dwell=dwell, corner_tolerance=corner_tolerance,
                 corner_orientation_tolerance=corner_orientation_tolerance,
                 max_samples=max_samples, feed_scale=feed_scale_max)[0], end_rest)
             line = planned.line
@@ -260,7 +258,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                     1, f"learn: {label}, worst draw tip max {summary['tip_max_um']:.3g} um"))
             timings["learn"] = time.perf_counter() - start
 
-    simulated, checked = _check_run(limited, machine, machine_obj, controller, draws,
+    simulated, checked = _check_run(limited, servo, machine, draws,
                                     learning_ensemble, workers=workers, step=step,
                                     timings=timings)
 
@@ -268,7 +266,7 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
     start = time.perf_counter()
     commands = limited.result.trajectory
     learning = limited.result.learning
-    info = ProgramInfo(machine=machine_obj.name, controller=controller,
+    info = ProgramInfo(machine=servo.machine.name, controller=controller,
                        method=f"contour pre-compensation within axis limits, passes "
                               f"{limited.result.iterations}"
                               + (f", learned against the virtual machine ({learn} pass(es)): "
@@ -278,9 +276,9 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                        source=str(program))
     program_text = gcode_program(commands.t, commands.q, tolerance=tolerance, info=info,
                                  passthrough=passthrough, line=limited.line,
-                                 axis_names=machine_obj.axis_names)
+                                 axis_names=servo.machine.axis_names)
     timings["gcode"] = time.perf_counter() - start
-    return RunResult(source=str(program), machine=machine_obj, controller=controller,
+    return RunResult(source=str(program), machine=servo.machine, controller=controller,
                      planned=planned, passthrough=passthrough, limited=limited,
                      simulated_before=simulated[0], simulated_after=simulated[1],
                      program=program_text, tolerance=tolerance, timings=timings,
@@ -289,10 +287,10 @@ def _run_program(program, outputs, *, machine, controller, tcp, dwell, corner_to
                      final_rest_added=final_rest_added)
 
 
-def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: Machine,
-               controller: str, draws: int, ensemble: MachineEnsemble, *, workers, step,
-               timings: dict[str, float]):
-    """``run``'s check of both commands on the realistic virtual machine: the machine file's
+def _check_run(limited: LimitedCompensation, servo: Servo, machine: str | Path, draws: int,
+               ensemble: MachineEnsemble, *, workers, step, timings: dict[str, float]):
+    """``run``'s check of both commands on the realistic virtual machine (``machine``: the
+    servo's machine as the caller named it, for the worker processes): the machine file's
     machine (:func:`check_on_virtual_machine`), then with ``draws`` > 1 that many draws of
     ``ensemble`` (:func:`check_on_draws`), a warning where the compensated commands are
     worse in whole. The two results (uncompensated, compensated) and the draws' check (None
@@ -301,7 +299,7 @@ def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: M
             f"({limited.reference.n_samples} samples each)")
     start = time.perf_counter()
     simulated = check_on_virtual_machine(limited.reference, limited.result.trajectory.q,
-                                         machine, controller, workers=workers)
+                                         machine, servo.controller, workers=workers)
     timings["virtual machine (both)"] = time.perf_counter() - start
     if draws <= 1:
         return simulated, None
@@ -310,8 +308,8 @@ def _check_run(limited: LimitedCompensation, machine: str | Path, machine_obj: M
             + ("(twice: its repeatability) " if ensemble.rerun_differs else "")
             + "and compensated")
     start = time.perf_counter()
-    checked = check_on_draws(limited.reference, limited.result.trajectory.q, machine_obj,
-                             controller, simulated, line=limited.line, ensemble=ensemble)
+    checked = check_on_draws(limited.reference, limited.result.trajectory.q, servo.machine,
+                             servo.controller, simulated, line=limited.line, ensemble=ensemble)
     timings["virtual machine (draws)"] = time.perf_counter() - start
     worse = checked.worse_in_whole()
     if worse:
