@@ -201,9 +201,9 @@ def test_the_command_line_scripts_and_benchmarks_import_no_private_module():
     """The command line, the measurement scripts and the benchmarks use what users can use:
     no precontour module or name whose name starts with an underscore (``__version__``
     aside)."""
-    root = PACKAGE.parent.parent
-    files = [*(PACKAGE / "cli").rglob("*.py"), *(root / "scripts").glob("*.py"),
-             *(root / "benchmarks").glob("*.py")]
+    root = Path(__file__).resolve().parents[1]      # the source tree, installed or not
+    files = [*(root / "src" / "precontour" / "cli").rglob("*.py"),
+             *(root / "scripts").glob("*.py"), *(root / "benchmarks").glob("*.py")]
     assert len(files) > 10
     private = []
     for path in files:
