@@ -222,10 +222,13 @@ def compensate(servo: Servo, traj: Trajectory, *, method: str = "contour",
             fallbacks=(("tracking-error pre-compensation", ended(hold(q_tracking))),),
             variants=(("resting axes held",
                        lambda q: hold_resting_axes(traj.q, q, idle_tolerance)),)
-            if hold_idle else (),
-            # every command tried is run, judged and kept ending at the programmed end
-            finish=ended if programmed_end else None)
+            if hold_idle else ())
+        # only the command kept is ended at the programmed end point, as learning within the
+        # limits does (within_limits.learn_commands): with every command tried tapered, the
+        # choice turned on the taper, and on circle / pid-low kept the uncompensated command
+        # (docs/compensation.md: 0 % where it now removes 93.8 % of the max tip error)
         q_learned, learning = learner.learn(q_best)
+        q_learned = ended(q_learned)
         if q_learned is not q_best:
             q_best, after_best = q_learned, errors_of(predict(q_learned))
         if learning.chosen == "uncompensated":
