@@ -32,6 +32,7 @@ from .within_limits import (LimitedCompensation, compensate_within_limits, learn
 __all__ = ["compensate", "Compensation", "METHODS", "keep_limits", "learn_on_ensemble",
            "can_learn"]
 
+
 @dataclass(frozen=True)
 class Compensation:
     """What :func:`compensate` gives.

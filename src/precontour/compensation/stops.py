@@ -262,15 +262,9 @@ class Learner:
     def __init__(self, problem: LearningProblem, settings: LearningSettings = LearningSettings(),
                  *, admissible: Callable[[np.ndarray], bool] | None = None, progress=None,
                  fallbacks: Sequence[tuple[str, np.ndarray]] = (),
-                 variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
-                 finish: Callable[[np.ndarray], np.ndarray] | None = None):
+                 variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = ()):
         self.problem, self.settings = problem, settings
         self.progress, self.fallbacks, self.variants = progress, fallbacks, variants
-        self.finished = (lambda q: q) if finish is None else finish
-        if admissible is not None and finish is not None:
-            def admissible_finished(q, admissible_as_given=admissible):
-                return admissible_as_given(self.finished(q))
-            admissible = admissible_finished
         self.admissible = admissible
         q_reference, ts = problem.q_reference, problem.ts
         n = q_reference.shape[0]
@@ -296,13 +290,12 @@ class Learner:
 
     # ------------------------------------------------------------------ the machine model
     def run(self, q, model=None):
-        """The machine model's actual motions of ``q`` (finished), shape (D, N, 5), or None
+        """The machine model's actual motions of ``q``, shape (D, N, 5), or None
         when ``q`` or a motion is not finite (a diverging update is simply not kept)."""
         machine_actual = self.problem.machine_actual
         model = machine_actual if model is None else model
         if not np.all(np.isfinite(q)):
             return None
-        q = self.finished(q)
         motion = np.asarray(model(q), dtype=float)
         if motion.ndim == 2:
             motion = motion[None]
@@ -636,8 +629,8 @@ class Learner:
         return kept, fallback, self.runs - runs_before
 
     def learn(self, q_linear):
-        """Learn from the linear compensation ``q_linear``: the command kept (finished) and
-        the report (see :func:`learn_at_stops`)."""
+        """Learn from the linear compensation ``q_linear``: the command kept and the report
+        (see :func:`learn_at_stops`)."""
         self.judge_reference()
         self.learn_sequences(q_linear)
         refinements = self.refine_on_worst_draw()
@@ -652,7 +645,7 @@ class Learner:
                                 uncompensated_draws=reference.summaries,
                                 kept_draws=judged.summaries, fallback=fallback,
                                 fallback_runs=fallback_runs)
-        return self.finished(q_kept), report
+        return q_kept, report
 
 
 def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
@@ -666,8 +659,7 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                    local: bool = True, t0: float = 0.0,
                    tail_errors_of=None, repeat_actual: MachineActual | None = None,
                    variants: Sequence[tuple[str, Callable[[np.ndarray], np.ndarray]]] = (),
-                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS,
-                   finish: Callable[[np.ndarray], np.ndarray] | None = None
+                   worst_draw_steps: tuple[float, ...] = WORST_DRAW_STEPS
                    ) -> tuple[np.ndarray, LearningReport]:
     """Improve the linear compensation ``q_linear`` against a nonlinear machine model.
 
@@ -752,13 +744,6 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
         it is neither made to fall back locally (mending it would spend a fallback's
         judgements on a command that only refines one the fallback already tries) nor
         another's fallback in a block.
-    finish : callable, optional
-        The command in fact run for each command learning tries, ``finish(q)`` (e.g. its
-        corrections tapered to the programmed end point,
-        :func:`~.programmed_end.end_at_programmed_end`); it must give ``q_reference`` itself
-        back. Every run on the machine model (so every judgement, fallback and update) and
-        every ``admissible`` check sees the finished command, and the command returned is
-        the finished one kept: what was judged is what is returned.
 
     Returns
     -------
@@ -774,5 +759,5 @@ def learn_at_stops(q_reference: np.ndarray, q_linear: np.ndarray, ts: float,
                               line=line, t0=t0, tail_errors_of=tail_errors_of,
                               repeat_actual=repeat_actual)
     learner = Learner(problem, settings, admissible=admissible, progress=progress,
-                      fallbacks=fallbacks, variants=variants, finish=finish)
+                      fallbacks=fallbacks, variants=variants)
     return learner.learn(q_linear)
