@@ -167,9 +167,8 @@ def with_former_spellings(value, kind: type, make, name: str, **former):
         return value
     if given:
         fields = ", ".join(f"{key}=..." for key in given)
-        warnings.warn(f"{', '.join(f'{key}=' for key in given)}: former spelling, removed in "
-                      f"precontour {FORMER_SPELLINGS_REMOVED_IN}; give {name}="
-                      f"{kind.__name__}({fields})", DeprecationWarning, stacklevel=3)
+        warn_former(", ".join(f"{key}=" for key in given),
+                    f"give {name}={kind.__name__}({fields})", stacklevel=3)
     options = make(value)
     return replace(options, **given) if given else options
 
@@ -183,7 +182,16 @@ def renamed_keyword(value, former_value, name: str, former: str):
     if value is not None:
         raise InputError(f"give {name}, not {former} (its former spelling) beside it",
                          field=former)
-    warnings.warn(f"{former}=: former spelling, removed in precontour "
-                  f"{FORMER_SPELLINGS_REMOVED_IN}; give {name}=", DeprecationWarning,
-                  stacklevel=3)
+    warn_former(f"{former}=", f"give {name}=", stacklevel=3)
     return former_value
+
+
+def warn_former(former: str, instead: str, *, kind: str = "spelling",
+                stacklevel: int = 2) -> None:
+    """The DeprecationWarning of every former spelling (a keyword, an attribute, an entry):
+    ``"{former}: former {kind}, removed in precontour {release}; {instead}"``.
+    ``stacklevel`` counts as :func:`warnings.warn`'s would from the caller of this function
+    (2: that caller's caller)."""
+    warnings.warn(f"{former}: former {kind}, removed in precontour "
+                  f"{FORMER_SPELLINGS_REMOVED_IN}; {instead}", DeprecationWarning,
+                  stacklevel=stacklevel + 1)

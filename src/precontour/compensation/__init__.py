@@ -16,9 +16,8 @@ package's own:
   corrections taper to zero over a final rest, which a plan gets where it is too short.
 """
 
-import warnings
-
-from ..defaults import DEFAULT_LEARNING_PASSES, FORMER_SPELLINGS_REMOVED_IN
+from ..defaults import DEFAULT_LEARNING_PASSES
+from ..errors import warn_former
 from .routes import METHODS, Compensation, compensate
 from .options import LearningOptions, LimitOptions
 from .precompensate import CompensationResult
@@ -31,10 +30,8 @@ __all__ = ["compensate", "Compensation", "METHODS", "LearningOptions", "LimitOpt
 def __getattr__(name):
     # learning has one entry, compensate(..., learn=...); the former one still answers
     if name == "learn_at_stops":
-        warnings.warn(f"precontour.compensation.learn_at_stops: former entry, removed in "
-                      f"precontour {FORMER_SPELLINGS_REMOVED_IN}; learn with "
-                      "compensate(servo, trajectory, learn=...)", DeprecationWarning,
-                      stacklevel=2)
+        warn_former("precontour.compensation.learn_at_stops",
+                    "learn with compensate(servo, trajectory, learn=...)", kind="entry")
         from .stops import learn_at_stops
 
         return learn_at_stops

@@ -8,11 +8,10 @@ functions take their system first; no stage builds error models itself.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..defaults import FORMER_SPELLINGS_REMOVED_IN
+from ..errors import warn_former
 
 from .limits import AxisLimits
 from .machine_file import Machine, load_machine
@@ -45,9 +44,7 @@ class Servo:
     def limits(self) -> AxisLimits:
         """The former name of :attr:`axis_limits` ("limits" is also compensation's
         :class:`~precontour.compensation.LimitOptions`), with a DeprecationWarning."""
-        warnings.warn(f"Servo.limits: former spelling, removed in precontour "
-                      f"{FORMER_SPELLINGS_REMOVED_IN}; use Servo.axis_limits",
-                      DeprecationWarning, stacklevel=2)
+        warn_former("Servo.limits", "use Servo.axis_limits")
         return self.axis_limits
 
     @property

@@ -15,9 +15,8 @@ orchestration; compensating and learning are :mod:`precontour.compensation`'s),
 and the result), :mod:`.export` (writing).
 """
 
-import warnings
-
-from ..defaults import EXPORT_FORMATS, FORMER_SPELLINGS_REMOVED_IN
+from ..defaults import EXPORT_FORMATS
+from ..errors import warn_former
 from .checks import (DrawCheck, check_on_draws, check_on_virtual_machine, errors_on_draws,
                      worse_in_whole_message)
 from .export import ExportResult, export_commands, export_format, write_run_outputs
@@ -60,8 +59,7 @@ _FORMER = {"compensate_keeping_limits": (_compensate_keeping_limits, "compensate
 def __getattr__(name):
     if name in _FORMER:
         function, now = _FORMER[name]
-        warnings.warn(f"precontour.workflow.{name}: former spelling, removed in precontour "
-                      f"{FORMER_SPELLINGS_REMOVED_IN}; use precontour.{now}, which takes the "
-                      "servo first", DeprecationWarning, stacklevel=2)
+        warn_former(f"precontour.workflow.{name}",
+                    f"use precontour.{now}, which takes the servo first")
         return function
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
